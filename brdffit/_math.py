@@ -1,0 +1,92 @@
+"""Shading-frame conventions and gradient-safe primitives shared by every model term.
+
+Conventions (stated once, used everywhere):
+
+* The shading frame has the surface normal ``n = (0, 0, 1)``; tangent ``x``, bitangent ``y``.
+* Directions are unit vectors pointing *away* from the surface: ``wi`` (towards the light),
+  ``wo`` (towards the viewer), ``wm`` the microfacet normal / half vector (RTR eq. 9.33).
+* Every direction argument has shape ``(..., 3)``; every scalar result has the batch shape
+  ``(...)``; RGB results have shape ``(..., 3)``. Parameters broadcast against the batch.
+* BRDFs return ``f_r`` without the cosine factor: the quantity a MERL table stores.
+
+Inside jitted code nothing branches on data: invalid configurations (a direction below the
+horizon, a back-facing half vector, ``alpha -> 0``) are handled with masks and the
+"double ``where``" trick, so that neither values nor gradients become NaN.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+#: Smallest denominator or radicand treated as non-zero in the safe primitives.
+EPS = 1e-12
+
+
+def dot(a, b):
+    """Dot product over the last axis, keeping the batch shape."""
+    return jnp.sum(a * b, axis=-1)
+
+
+def safe_sqrt(x, eps: float = EPS):
+    """``sqrt(max(x, 0))`` whose gradient is finite (zero) at and below ``eps``."""
+    ok = x > eps
+    return jnp.where(ok, jnp.sqrt(jnp.where(ok, x, 1.0)), 0.0)
+
+
+def safe_div(num, den, fill: float = 0.0, eps: float = EPS):
+    """``num / den`` where ``|den| > eps``, else ``fill``; gradients stay finite."""
+    ok = jnp.abs(den) > eps
+    return jnp.where(ok, num / jnp.where(ok, den, 1.0), fill)
+
+
+def normalize(v, eps: float = EPS):
+    """Unit vector along ``v``; the zero vector maps to ``(0, 0, 1)`` with finite gradients."""
+    n2 = dot(v, v)
+    ok = n2 > eps
+    inv = jnp.where(ok, 1.0 / jnp.sqrt(jnp.where(ok, n2, 1.0)), 0.0)
+    return jnp.where(ok[..., None], v * inv[..., None], jnp.array([0.0, 0.0, 1.0], v.dtype))
+
+
+def half_vector(wi, wo):
+    """The (unnormalised sum, then normalised) half vector ``h = (wi + wo)/|wi + wo|``, RTR eq. 9.33."""
+    return normalize(wi + wo)
+
+
+def cos_theta(w):
+    """``n . w`` with ``n = z``."""
+    return w[..., 2]
+
+
+def cos2_theta(w):
+    return w[..., 2] ** 2
+
+
+def sin2_theta(w):
+    """``1 - cos^2 theta``, clamped at zero against rounding."""
+    return jnp.maximum(0.0, 1.0 - w[..., 2] ** 2)
+
+
+def tan2_theta(w):
+    """``sin^2/cos^2``; ``+inf``-free: grazing directions give a large finite value."""
+    return safe_div(sin2_theta(w), cos2_theta(w), fill=1.0 / EPS)
+
+
+def cos2_sin2_phi(w):
+    """``(cos^2 phi, sin^2 phi)`` of the azimuth of ``w``; ``(1, 0)`` at the pole.
+
+    Anisotropic NDFs need the azimuth only through these squares (RTR eqs. 9.51-9.53).
+    """
+    s2 = w[..., 0] ** 2 + w[..., 1] ** 2
+    c2 = safe_div(w[..., 0] ** 2, s2, fill=1.0)
+    return c2, 1.0 - c2
+
+
+def chi_plus(x):
+    """Heaviside ``chi^+(x)``: 1 for ``x > 0``, else 0 (RTR eq. 9.21)."""
+    return (x > 0).astype(jnp.result_type(x, jnp.float32))
+
+
+def spherical_direction(theta, phi):
+    """Unit vector at polar angle ``theta`` from ``z`` and azimuth ``phi`` from ``x``."""
+    st = jnp.sin(theta)
+    return jnp.stack([st * jnp.cos(phi), st * jnp.sin(phi), jnp.cos(theta)], axis=-1)

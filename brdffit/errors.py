@@ -1,0 +1,35 @@
+"""Error types. Every user-facing mistake raises a subclass of :class:`BrdffitError`.
+
+The command line prints such errors as one line on stderr and exits with code 2; file-format
+errors come from :mod:`data_formats` (e.g. ``MERLFormatError``) and are treated the same way.
+"""
+
+from __future__ import annotations
+
+import difflib
+
+
+class BrdffitError(ValueError):
+    """Base class of the errors a user can fix (bad names, bad values, bad configs)."""
+
+
+class UnknownNameError(BrdffitError, KeyError):
+    """A name (model, parameter, loss, solver, config key) that is not in its registry."""
+
+    def __init__(self, kind: str, name: str, valid):
+        valid = sorted(valid)
+        close = difflib.get_close_matches(str(name), valid, n=1)
+        hint = f" Did you mean {close[0]!r}?" if close else ""
+        self.kind, self.name, self.valid = kind, name, valid
+        super().__init__(f"unknown {kind} {name!r}; valid {kind}s: {', '.join(valid)}.{hint}")
+
+    def __str__(self) -> str:  # KeyError would otherwise quote the message
+        return self.args[0]
+
+
+class ConfigError(BrdffitError):
+    """A preset or option with a wrong key, type or value."""
+
+
+class FitError(BrdffitError):
+    """A fit that cannot run (no usable data) or that failed with ``throw=True``."""

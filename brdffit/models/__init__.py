@@ -1,0 +1,13 @@
+"""Composite BRDF models and the registry of named models.
+
+Importing this package registers the built-in models. A new model: write ``fn(params, wi, wo)``
+from the pieces in :mod:`brdffit.ndf`, :mod:`brdffit.masking`, :mod:`brdffit.fresnel` and
+:mod:`brdffit.diffuse`, declare its :class:`Param` list, and :func:`register` it in a module
+imported here.
+"""
+
+from . import standard  # noqa: F401  (registers ggx, ggx-aniso, two-lobe-ggx, ...)
+from .microfacet import microfacet_specular
+from .registry import Model, Param, available_models, get_model, register
+
+__all__ = ["Model", "Param", "available_models", "get_model", "microfacet_specular", "register"]

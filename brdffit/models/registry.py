@@ -1,0 +1,168 @@
+"""Named BRDF models: parameters as data, one registry for the CLI and configs.
+
+A :class:`Model` is a pure function ``fn(params, wi, wo) -> f_r`` (RGB, shape ``(..., 3)``) plus
+the declaration of its parameters (:class:`Param`: name, shape, physical bounds, default,
+description). Fitting and sampling work from these declarations alone, so a new model is one
+function and one :func:`register` call (see :mod:`brdffit.models.standard` for examples).
+
+Names exist only at this boundary (CLI, configs); Python code may hold :class:`Model` objects.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+
+import numpy as np
+
+from ..errors import BrdffitError, UnknownNameError
+
+
+@dataclasses.dataclass(frozen=True)
+class Param:
+    """One named model parameter.
+
+    Attributes:
+        name: identifier used in Python, configs and on the command line.
+        shape: ``()`` for a scalar, ``(3,)`` for an RGB triple.
+        lower, upper: physical bounds, applied to every component.
+        default: starting value (scalar broadcasts over the shape).
+        description: one line for humans.
+        log: the parameter spans decades (roughness): fitted in log space.
+    """
+
+    name: str
+    shape: tuple[int, ...]
+    lower: float
+    upper: float
+    default: float | tuple[float, ...]
+    description: str
+    log: bool = False
+
+    @property
+    def size(self) -> int:
+        return int(np.prod(self.shape, dtype=int))
+
+    def default_array(self) -> np.ndarray:
+        return np.broadcast_to(np.asarray(self.default, dtype=float), self.shape).copy()
+
+    def coerce(self, value) -> np.ndarray:
+        """``value`` as an array of this parameter's shape; a scalar fills an RGB triple."""
+        arr = np.asarray(value, dtype=float)
+        try:
+            arr = np.broadcast_to(arr, self.shape).copy()
+        except ValueError:
+            raise BrdffitError(
+                f"parameter {self.name!r} takes shape {self.shape or 'scalar'}, got {np.shape(value)}"
+            ) from None
+        if not np.all(np.isfinite(arr)):
+            raise BrdffitError(f"parameter {self.name!r} must be finite, got {value!r}")
+        return arr
+
+    def check_bounds(self, value) -> np.ndarray:
+        arr = self.coerce(value)
+        if np.any(arr < self.lower) or np.any(arr > self.upper):
+            raise BrdffitError(
+                f"parameter {self.name!r}={value!r} is outside its bounds "
+                f"[{self.lower:g}, {self.upper:g}]"
+            )
+        return arr
+
+
+@dataclasses.dataclass(frozen=True)
+class Model:
+    """A named BRDF model: ``fn(params, wi, wo)`` with declared parameters.
+
+    ``fn`` receives a mapping from every parameter name to an array of its shape and directions
+    of shape ``(..., 3)``; it returns RGB ``f_r`` of shape ``(..., 3)`` (no cosine factor).
+    """
+
+    name: str
+    description: str
+    params: tuple[Param, ...]
+    fn: Callable = dataclasses.field(repr=False, compare=False)
+    isotropic: bool = True
+    reference: str = ""
+
+    # -- parameter bookkeeping ---------------------------------------------------------------
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+    @property
+    def size(self) -> int:
+        """Number of scalar parameters (an RGB parameter counts three)."""
+        return sum(p.size for p in self.params)
+
+    def param(self, name: str) -> Param:
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise UnknownNameError(f"parameter of model {self.name!r}", name, self.names)
+
+    def defaults(self) -> dict[str, np.ndarray]:
+        return {p.name: p.default_array() for p in self.params}
+
+    def complete(self, params: Mapping | None = None) -> dict:
+        """Defaults overridden by ``params``; unknown names raise :class:`UnknownNameError`."""
+        out = dict(self.defaults())
+        for k, v in (params or {}).items():
+            self.param(k)  # raises on unknown names
+            out[k] = v
+        return out
+
+    def flatten(self, params: Mapping) -> np.ndarray:
+        """Concatenate parameters (in declaration order) into one float vector."""
+        full = self.complete(params)
+        return np.concatenate([np.ravel(self.param(n).coerce(full[n])) for n in self.names])
+
+    def unflatten(self, x) -> dict:
+        """Inverse of :meth:`flatten`; works on NumPy and JAX arrays (inside ``jit`` too)."""
+        out, i = {}, 0
+        for p in self.params:
+            out[p.name] = x[i] if p.shape == () else x[i : i + p.size].reshape(p.shape)
+            i += p.size
+        return out
+
+    def flat_names(self) -> list[str]:
+        """Names of the flat vector's entries: ``alpha``, ``f0[0]``, ``f0[1]``, ..."""
+        names = []
+        for p in self.params:
+            names += [p.name] if p.shape == () else [f"{p.name}[{i}]" for i in range(p.size)]
+        return names
+
+    def flat_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = np.concatenate([np.full(p.size, p.lower, float) for p in self.params])
+        hi = np.concatenate([np.full(p.size, p.upper, float) for p in self.params])
+        return lo, hi
+
+    # -- evaluation ----------------------------------------------------------------------------
+    def __call__(self, params: Mapping, wi, wo):
+        """``f_r(wi, wo)`` as RGB ``(..., 3)``; missing parameters take their defaults."""
+        return self.fn(self.complete(params), wi, wo)
+
+
+_REGISTRY: dict[str, Model] = {}
+
+
+def register(model: Model) -> Model:
+    """Add ``model`` to the registry under ``model.name`` (names are unique)."""
+    if model.name in _REGISTRY:
+        raise ValueError(f"a model named {model.name!r} is already registered")
+    _REGISTRY[model.name] = model
+    return model
+
+
+def get_model(model) -> Model:
+    """A :class:`Model` from a registry name (or the model itself)."""
+    if isinstance(model, Model):
+        return model
+    try:
+        return _REGISTRY[model]
+    except KeyError:
+        raise UnknownNameError("model", model, _REGISTRY) from None
+
+
+def available_models() -> list[str]:
+    """Registered model names, sorted."""
+    return sorted(_REGISTRY)

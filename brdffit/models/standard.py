@@ -1,0 +1,85 @@
+"""The standard registered models: one microfacet specular lobe (or two) plus Lambert.
+
+Every entry is a short ``fn(params, wi, wo)`` built from the pieces in :mod:`brdffit.ndf`,
+:mod:`brdffit.masking`, :mod:`brdffit.fresnel` and :mod:`brdffit.diffuse`, and a parameter list.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+from ..diffuse import lambert
+from ..fresnel import schlick
+from ..ndf import GGX
+from .microfacet import microfacet_specular
+from .registry import Model, Param, register
+
+#: Bounds shared by the single-lobe models. Roughness ``alpha`` spans decades (polished metals
+#: near 0.005, paints near 0.3), so it is fitted in log space.
+ALPHA_BOUNDS = (1e-3, 1.0)
+
+DIFFUSE = Param("diffuse", (3,), 0.0, 1.0, 0.2, "Lambertian diffuse albedo ρ_d (RGB); f_d = ρ_d/π")
+F0 = Param("f0", (3,), 0.0, 1.0, 0.04, "specular reflectance at normal incidence F0 (RGB), Schlick")
+ALPHA = Param("alpha", (), *ALPHA_BOUNDS, 0.1, "microfacet roughness α", log=True)
+
+
+def _single_lobe(ndf_from_params):
+    """``fn(p, wi, wo)`` for Lambert + one Schlick microfacet lobe with the given NDF."""
+
+    def fn(p, wi, wo):
+        ndf = ndf_from_params(p)
+        return lambert(p["diffuse"], wi, wo) + microfacet_specular(
+            ndf, partial(schlick, p["f0"]), wi, wo
+        )
+
+    return fn
+
+
+GGX_MODEL = register(
+    Model(
+        name="ggx",
+        description="Lambert + GGX/Trowbridge-Reitz specular, height-correlated Smith G2, Schlick F",
+        params=(DIFFUSE, F0, ALPHA),
+        fn=_single_lobe(lambda p: GGX(p["alpha"])),
+        reference="RTR eqs. 9.34, 9.41, 9.42, 9.31, 9.16, 9.61",
+    )
+)
+
+GGX_ANISO_MODEL = register(
+    Model(
+        name="ggx-aniso",
+        description="Lambert + anisotropic GGX specular (α_x along the tangent, α_y along the bitangent)",
+        params=(
+            DIFFUSE,
+            F0,
+            Param("alpha_x", (), *ALPHA_BOUNDS, 0.1, "roughness along the tangent x", log=True),
+            Param("alpha_y", (), *ALPHA_BOUNDS, 0.1, "roughness along the bitangent y", log=True),
+        ),
+        fn=_single_lobe(lambda p: GGX(p["alpha_x"], p["alpha_y"])),
+        isotropic=False,
+        reference="RTR eqs. 9.34, 9.53, 9.42 with 9.51",
+    )
+)
+
+
+def _two_lobe_ggx(p, wi, wo):
+    lobe1 = microfacet_specular(GGX(p["alpha_1"]), partial(schlick, p["f0_1"]), wi, wo)
+    lobe2 = microfacet_specular(GGX(p["alpha_2"]), partial(schlick, p["f0_2"]), wi, wo)
+    return lambert(p["diffuse"], wi, wo) + lobe1 + lobe2
+
+
+TWO_LOBE_GGX_MODEL = register(
+    Model(
+        name="two-lobe-ggx",
+        description="Lambert + a sharp and a broad GGX lobe (after Ngan et al. 2005, RTR §9.8.1)",
+        params=(
+            DIFFUSE,
+            Param("f0_1", (3,), 0.0, 1.0, 0.04, "F0 of the sharp lobe (RGB)"),
+            Param("alpha_1", (), *ALPHA_BOUNDS, 0.05, "roughness of the sharp lobe", log=True),
+            Param("f0_2", (3,), 0.0, 1.0, 0.02, "F0 of the broad lobe (RGB)"),
+            Param("alpha_2", (), *ALPHA_BOUNDS, 0.3, "roughness of the broad lobe", log=True),
+        ),
+        fn=_two_lobe_ggx,
+        reference="RTR eq. 9.34 twice; Ngan et al. 2005",
+    )
+)

@@ -1,0 +1,9 @@
+"""File formats for measured BRDF data. NumPy only: never imports :mod:`brdffit` or JAX.
+
+Each format lives in its own module and hands its data over as a
+:class:`~data_formats.samples.SampleSet` (``to_samples()``), the only thing the fitter reads.
+"""
+
+from .samples import SampleSet
+
+__all__ = ["SampleSet"]

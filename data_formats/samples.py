@@ -1,0 +1,51 @@
+"""A format-neutral set of measured BRDF samples: the common currency of every reader.
+
+Every reader in :mod:`data_formats` can hand its data over as a :class:`SampleSet`; the fitter
+consumes nothing else. Shapes are static: missing measurements stay in the arrays, marked by
+``valid == False`` (so every table of the same layout compiles once downstream).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+
+@dataclasses.dataclass
+class SampleSet:
+    """Measured direction pairs with RGB BRDF values.
+
+    Attributes:
+        wi, wo: unit directions ``(N, 3)`` in the shading frame (``z`` is the normal).
+        rgb: BRDF values ``f_r`` (no cosine factor), ``(N, 3)``; undefined where not ``valid``.
+        valid: ``(N,)`` bool; ``False`` marks a missing or unusable measurement.
+        name: a short label (the file stem), used in titles and summaries.
+        path: the source file, if any.
+    """
+
+    wi: np.ndarray
+    wo: np.ndarray
+    rgb: np.ndarray
+    valid: np.ndarray
+    name: str = ""
+    path: str | None = None
+
+    def __post_init__(self):
+        n = len(self.rgb)
+        for field in ("wi", "wo", "rgb"):
+            arr = getattr(self, field)
+            if arr.shape != (n, 3):
+                raise ValueError(f"SampleSet.{field} must have shape ({n}, 3), got {arr.shape}")
+        if self.valid.shape != (n,):
+            raise ValueError(f"SampleSet.valid must have shape ({n},), got {self.valid.shape}")
+
+    def __len__(self) -> int:
+        return len(self.rgb)
+
+    @property
+    def n_valid(self) -> int:
+        return int(np.count_nonzero(self.valid))
+
+    def to_samples(self) -> "SampleSet":
+        return self
