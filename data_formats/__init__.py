@@ -7,3 +7,5 @@ Each format lives in its own module and hands its data over as a
 from .samples import SampleSet
 
 __all__ = ["SampleSet"]
+from .samplelist import SampleListFormatError, read_samples, write_samples  # noqa: E402
+__all__ += ["SampleListFormatError", "read_samples", "write_samples"]
