@@ -1,0 +1,255 @@
+"""Invariants every registered model must satisfy, parametrized over the registry.
+
+Reciprocity, isotropy (for isotropic models), energy (directional albedo <= 1 in a setting where
+the Fresnel term is 1), finite-difference gradients for every parameter, jit == no-jit, float32
+finiteness, no NaN gradients at grazing angles, and a plain NumPy transcription of the standard
+single-lobe models. A newly registered model is picked up automatically; the energy test asks for
+its "white" setting in ``WHITE`` below.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import brdffit
+from brdffit.models import get_model
+
+MODELS = brdffit.available_models()
+
+#: Parameter settings in which every lobe's Fresnel reflectance is 1 and diffuse terms are off,
+#: so the directional albedo must stay <= 1 (a microfacet lobe with height-correlated G2 loses
+#: energy to multiple scattering, never gains it). Keys are model names.
+WHITE = {
+    "ggx": dict(diffuse=0.0, f0=1.0, alpha=0.3),
+    "ggx-aniso": dict(diffuse=0.0, f0=1.0, alpha_x=0.2, alpha_y=0.5),
+    "beckmann": dict(diffuse=0.0, f0=1.0, alpha=0.3),
+    "gtr": dict(diffuse=0.0, f0=1.0, alpha=0.3, gamma=1.5),
+    "blinn-phong": dict(diffuse=0.0, f0=1.0, alpha=0.3),
+    # Two Schlick lobes each tend to F = 1 at grazing incidence, so the sum is not bounded by
+    # construction there (a known property of summed lobes): F0 is split between the lobes and
+    # the bound is checked up to 60° incidence only (see ENERGY_MAX_THETA).
+    "two-lobe-ggx": dict(diffuse=0.0, f0_1=0.5, alpha_1=0.1, f0_2=0.5, alpha_2=0.4),
+    "disney": dict(
+        base_color=1.0, metallic=1.0, roughness=0.5, sheen=0.0, clearcoat=0.0, subsurface=0.0
+    ),
+}
+
+
+#: Largest incidence angle (degrees) at which the white-setting bound is asserted (default 80).
+ENERGY_MAX_THETA = {"two-lobe-ggx": 60.0}
+
+
+def _random_pairs(n, seed, min_cos=0.05):
+    rng = np.random.default_rng(seed)
+
+    def hemi(k):
+        z = rng.uniform(min_cos, 1.0, k)
+        phi = rng.uniform(0, 2 * np.pi, k)
+        r = np.sqrt(1 - z**2)
+        return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
+
+    return jnp.asarray(hemi(n)), jnp.asarray(hemi(n))
+
+
+def _interior_params(model, seed=0):
+    """Random parameters strictly inside the bounds (log-uniform for log parameters)."""
+    rng = np.random.default_rng(seed)
+    out = {}
+    for p in model.params:
+        lo, hi = p.lower, p.upper
+        if p.log:
+            v = np.exp(rng.uniform(np.log(lo) + 0.2 * np.log(hi / lo), np.log(hi) - 0.2 * np.log(hi / lo), p.shape))
+        else:
+            v = rng.uniform(lo + 0.2 * (hi - lo), hi - 0.2 * (hi - lo), p.shape)
+        out[p.name] = jnp.asarray(v)
+    return out
+
+
+def _rot_z(v, angle):
+    c, s = np.cos(angle), np.sin(angle)
+    R = jnp.asarray([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return v @ R.T
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_reciprocity(name):
+    model = get_model(name)
+    p = _interior_params(model)
+    wi, wo = _random_pairs(256, 1)
+    np.testing.assert_allclose(model(p, wi, wo), model(p, wo, wi), rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", [m for m in MODELS if get_model(m).isotropic])
+def test_isotropic_models_invariant_under_rotation_about_normal(name):
+    model = get_model(name)
+    p = _interior_params(model, 1)
+    wi, wo = _random_pairs(256, 2)
+    for angle in (0.3, 1.7, 4.0):
+        np.testing.assert_allclose(
+            model(p, _rot_z(wi, angle), _rot_z(wo, angle)), model(p, wi, wo), rtol=1e-9, atol=1e-12
+        )
+
+
+@pytest.mark.parametrize("name", [m for m in MODELS if not get_model(m).isotropic])
+def test_anisotropic_models_depend_on_azimuth(name):
+    """The anisotropic entries really are anisotropic at an anisotropic setting (no silent no-op)."""
+    model = get_model(name)
+    p = dict(WHITE[name])
+    wi, wo = _random_pairs(256, 3)
+    rotated = model(p, _rot_z(wi, 0.9), _rot_z(wo, 0.9))
+    assert float(jnp.max(jnp.abs(rotated - model(p, wi, wo)))) > 1e-3
+
+
+def _albedo(model, params, theta_i, n_th=400, n_ph=256):
+    """Directional albedo ∫ f cosθo dωo over the half-vector domain (dωo = 4 (wo·h) dωh).
+
+    θh is warped as (π/2)u², like the MERL grid, to resolve narrow peaks; midpoint rule in u
+    and φh.
+    """
+    u = (np.arange(n_th) + 0.5) / n_th
+    th = 0.5 * np.pi * u**2
+    dth = np.pi * u / n_th
+    ph = (np.arange(n_ph) + 0.5) / n_ph * 2 * np.pi
+    TH, PH = np.meshgrid(th, ph, indexing="ij")
+    h = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1)
+    wi = np.array([np.sin(theta_i), 0.0, np.cos(theta_i)])
+    hw = h @ wi
+    wo = 2 * hw[..., None] * h - wi
+    ok = (wo[..., 2] > 0) & (hw > 0)
+    f = np.asarray(model(params, jnp.asarray(np.broadcast_to(wi, wo.shape)), jnp.asarray(wo)))
+    integrand = f * (np.where(ok, wo[..., 2] * 4 * hw, 0.0) * np.sin(TH))[..., None]
+    return (integrand * (dth[:, None] * (2 * np.pi / n_ph))[..., None]).sum(axis=(0, 1))
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_energy_white_setting_albedo_at_most_one(name):
+    if name not in WHITE:
+        pytest.fail(f"model {name!r} has no white (F = 1) setting in tests/test_models.py::WHITE")
+    model = get_model(name)
+    angles = [t for t in (0.0, 30.0, 60.0, 80.0) if t <= ENERGY_MAX_THETA.get(name, 80.0)]
+    for theta_i in np.radians(angles):
+        a = _albedo(model, WHITE[name], theta_i)
+        assert np.all(a <= 1.0 + 5e-3), (name, np.degrees(theta_i), a)
+        assert np.all(a > 0.3), (name, np.degrees(theta_i), a)  # the integral sees the lobe
+
+
+def test_albedo_quadrature_reproduces_lambert():
+    """The energy test's quadrature is itself checked: a Lambertian surface has albedo ρ."""
+    from brdffit.diffuse import lambert
+
+    for theta_i in np.radians([0.0, 45.0, 80.0]):
+        a = _albedo(lambda p, wi, wo: lambert(jnp.asarray([0.7, 0.3, 1.0]), wi, wo), {}, theta_i)
+        np.testing.assert_allclose(a, [0.7, 0.3, 1.0], rtol=2e-3)
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_gradients_match_finite_differences(name):
+    model = get_model(name)
+    p0 = _interior_params(model, 3)
+    wi, wo = _random_pairs(64, 4)
+    x0 = model.flatten({k: np.asarray(v) for k, v in p0.items()})
+
+    def scalar(x):
+        return jnp.sum(jnp.log1p(model(model.unflatten(x), wi, wo)))
+
+    g = np.asarray(jax.grad(scalar)(jnp.asarray(x0)))
+    assert np.all(np.isfinite(g))
+    for i, label in enumerate(model.flat_names()):
+        h = 1e-6 * max(1.0, abs(x0[i]))
+        e = np.zeros_like(x0)
+        e[i] = h
+        fd = (float(scalar(jnp.asarray(x0 + e))) - float(scalar(jnp.asarray(x0 - e)))) / (2 * h)
+        assert fd == pytest.approx(g[i], rel=1e-5, abs=1e-7), (name, label)
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_jit_matches_eager_and_float32_is_finite(name):
+    model = get_model(name)
+    p = _interior_params(model, 5)
+    wi, wo = _random_pairs(128, 6, min_cos=0.0)
+    eager = model(p, wi, wo)
+    jitted = jax.jit(lambda p, a, b: model(p, a, b))(p, wi, wo)
+    np.testing.assert_allclose(jitted, eager, rtol=1e-12, atol=1e-14)
+    p32 = {k: v.astype(jnp.float32) for k, v in p.items()}
+    f32 = model(p32, wi.astype(jnp.float32), wo.astype(jnp.float32))
+    assert f32.dtype == jnp.float32
+    assert bool(jnp.all(jnp.isfinite(f32)))
+    np.testing.assert_allclose(f32, eager, rtol=2e-3, atol=1e-5)
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_no_nan_gradients_at_grazing_and_below_horizon(name):
+    model = get_model(name)
+    p = _interior_params(model, 7)
+    x0 = jnp.asarray(model.flatten({k: np.asarray(v) for k, v in p.items()}))
+    # Exactly grazing, exactly normal, mirror pair at the pole, and one direction below.
+    wi = jnp.asarray([[1.0, 0, 0], [0, 0, 1.0], [0, 0, 1.0], [0.6, 0, -0.8], [0.8, 0, 0.6]])
+    wo = jnp.asarray([[-1.0, 0, 0], [0, 0, 1.0], [0.6, 0, 0.8], [0.0, 0.6, 0.8], [-0.8, 0, 0.6]])
+
+    def scalar(x):
+        return jnp.sum(model(model.unflatten(x), wi, wo))
+
+    val, g = jax.value_and_grad(scalar)(x0)
+    assert np.isfinite(float(val))
+    assert np.all(np.isfinite(np.asarray(g)))
+    f = model(p, wi, wo)
+    np.testing.assert_array_equal(np.asarray(f[3]), 0.0)  # below the horizon: no reflection
+
+
+def test_unknown_model_and_parameter_errors_list_valid_names():
+    with pytest.raises(brdffit.UnknownNameError, match="valid models: .*ggx"):
+        get_model("gxx")
+    with pytest.raises(brdffit.UnknownNameError, match="alpha"):
+        get_model("ggx").param("roughness")
+
+
+# --- A plain NumPy transcription of the single-lobe models (independent of brdffit's pieces) ---
+
+
+def _np_ggx_lobe(wi, wo, diffuse, f0, alpha):
+    """Lambert + GGX (RTR 9.41), height-correlated Smith (9.31, 9.42), Schlick (9.16); 9.34."""
+    h = wi + wo
+    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    ci, co, ch = wi[:, 2], wo[:, 2], h[:, 2]
+    D = alpha**2 / (np.pi * (1 + ch**2 * (alpha**2 - 1)) ** 2)
+
+    def lam(c):
+        return (-1 + np.sqrt(1 + alpha**2 * (1 - c**2) / c**2)) / 2
+
+    G2 = 1 / (1 + lam(ci) + lam(co))
+    F = f0 + (1 - f0) * (1 - np.sum(wi * h, -1)[:, None]) ** 5
+    return diffuse / np.pi + F * (G2 * D / (4 * ci * co))[:, None]
+
+
+def test_ggx_model_matches_numpy_transcription():
+    wi, wo = _random_pairs(500, 8)
+    p = dict(diffuse=np.array([0.1, 0.2, 0.3]), f0=np.array([0.9, 0.5, 0.04]), alpha=0.17)
+    ref = _np_ggx_lobe(np.asarray(wi), np.asarray(wo), **p)
+    np.testing.assert_allclose(get_model("ggx")(p, wi, wo), ref, rtol=1e-10)
+
+
+def test_two_lobe_ggx_is_the_sum_of_its_lobes():
+    wi, wo = _random_pairs(300, 9)
+    a, b = np.asarray(wi), np.asarray(wo)
+    d, f1, f2 = np.array([0.1, 0.2, 0.3]), np.array([0.9, 0.5, 0.2]), np.array([0.05, 0.04, 0.03])
+    ref = _np_ggx_lobe(a, b, d, f1, 0.03) + _np_ggx_lobe(a, b, 0.0, f2, 0.4)
+    got = get_model("two-lobe-ggx")(dict(diffuse=d, f0_1=f1, alpha_1=0.03, f0_2=f2, alpha_2=0.4), wi, wo)
+    np.testing.assert_allclose(got, ref, rtol=1e-10)
+
+
+def test_ggx_aniso_reduces_to_isotropic_and_matches_rtr_9_53():
+    wi, wo = _random_pairs(300, 10)
+    p = dict(diffuse=0.2, f0=0.5)
+    iso = get_model("ggx")(dict(p, alpha=0.25), wi, wo)
+    np.testing.assert_allclose(get_model("ggx-aniso")(dict(p, alpha_x=0.25, alpha_y=0.25), wi, wo), iso, rtol=1e-10)
+    # Anisotropic D against RTR eq. 9.53 written out.
+    ax, ay = 0.1, 0.4
+    h = np.asarray(wi) + np.asarray(wo)
+    h /= np.linalg.norm(h, axis=-1, keepdims=True)
+    D_ref = 1 / (np.pi * ax * ay * ((h[:, 0] / ax) ** 2 + (h[:, 1] / ay) ** 2 + h[:, 2] ** 2) ** 2)
+    from brdffit.ndf import GGX
+
+    np.testing.assert_allclose(GGX(ax, ay).D(jnp.asarray(h)), D_ref, rtol=1e-12)
