@@ -112,6 +112,8 @@ def _read_csv(path: Path) -> tuple[list[str], np.ndarray, np.ndarray]:
         if line.strip() and not line.lstrip().startswith("#")
     ]
     line_numbers = np.array([lineno for lineno, _ in data_lines], dtype=int)
+    if not data_lines:
+        return header, np.empty((0, len(header))), line_numbers
     try:  # fast path; on failure, the slow path below finds and names the bad field
         data = np.loadtxt([line for _, line in data_lines], delimiter=",", ndmin=2)
         if data.shape == (len(data_lines), len(header)):
@@ -183,7 +185,7 @@ def _check_finite(path, columns, data, rows) -> None:
     if bad.any():
         i, c = np.argwhere(bad)[0]
         raise SampleListFormatError(
-            f"{_where(path, rows, i)}, column {columns[c]!r}: value {data[i, c]!r} is not finite; "
+            f"{_where(path, rows, i)}, column {columns[c]!r}: value {float(data[i, c])} is not finite; "
             f"every sample needs finite numbers (remove or repair the row)"
         )
 
@@ -200,7 +202,8 @@ def _directions(path, cols: dict, rows, side: str) -> np.ndarray:
                     f"θ is measured from the normal in degrees, 0 ≤ θ ≤ 90"
                 )
         t, p = np.radians(theta), np.radians(phi)
-        return np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1)
+        cos_t = np.where(theta == 90, 0.0, np.cos(t))  # cos(π/2) is 6e-17 in floating point
+        return np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), cos_t], axis=-1)
     names = [f"w{side}x", f"w{side}y", f"w{side}z"]
     w = np.stack([cols[n] for n in names], axis=-1)
     if (w[:, 2] < 0).any():
