@@ -7,6 +7,7 @@ imported here.
 """
 
 from . import standard  # noqa: F401  (registers ggx, ggx-aniso, two-lobe-ggx, ...)
+from . import disney  # noqa: F401
 from .microfacet import microfacet_specular
 from .registry import Model, Param, available_models, get_model, register
 
