@@ -1,0 +1,161 @@
+"""Helpers shared by the commands: ``p=v`` parsing, inputs, safe outputs, progress.
+
+Nothing here imports JAX; the commands import it (and the fitter) only when they run.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from ..errors import BrdffitError
+
+INPUT_SUFFIXES = {".binary": "MERL table", ".csv": "sample list", ".npz": "sample list"}
+
+
+class UsageError(BrdffitError):
+    """A command-line mistake the user can fix (bad ``p=v``, existing output, ...)."""
+
+
+# -- values -----------------------------------------------------------------------------------
+def parse_value(text: str, where: str):
+    """``0.9,0.6,0.3`` → a 3-tuple; ``0.5`` → a float (fills all three channels of an RGB param)."""
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise UsageError(
+            f"{where}: {text!r} is not a number or an RGB triple like 0.9,0.6,0.3"
+        ) from None
+    if len(values) == 1:
+        return values[0]
+    if len(values) == 3:
+        return tuple(values)
+    raise UsageError(f"{where}: {text!r} has {len(values)} values; give one number or three (r,g,b)")
+
+
+def parse_assignments(items: Iterable[str] | None, flag: str) -> dict:
+    """``["alpha=0.1", "f0=0.9,0.6,0.3"]`` → ``{"alpha": 0.1, "f0": (0.9, 0.6, 0.3)}``."""
+    out = {}
+    for item in items or ():
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise UsageError(f"{flag} {item!r}: expected NAME=VALUE, e.g. {flag} alpha=0.1")
+        out[name.strip()] = parse_value(value, f"{flag} {name.strip()}")
+    return out
+
+
+def check_params(model, values: dict, flag: str) -> dict:
+    """Names and values of ``values`` checked against ``model``'s declared parameters."""
+    for name, value in values.items():
+        param = model.param(name)  # UnknownNameError lists the model's parameters
+        try:
+            param.check_bounds(value)
+        except BrdffitError as exc:
+            raise UsageError(f"{flag}: {exc}") from None
+    return values
+
+
+# -- inputs -----------------------------------------------------------------------------------
+def read_input(path: str):
+    """A MERL table (``.binary``) or a sample list (``.csv``, ``.npz``), by suffix."""
+    p = Path(path)
+    kind = INPUT_SUFFIXES.get(p.suffix.lower())
+    if kind is None:
+        raise UsageError(
+            f"{path}: unknown input format {p.suffix or '(no suffix)'!r}; expected .binary "
+            f"(MERL table) or .csv / .npz (sample list, see data_formats.samplelist)"
+        )
+    if not p.exists():
+        raise UsageError(f"{path}: no such file")
+    if kind == "MERL table":
+        from data_formats.merl import read_merl
+
+        return read_merl(p)
+    from data_formats.samplelist import read_samples
+
+    return read_samples(p)
+
+
+def is_table(data) -> bool:
+    """True for a MERL table (has a grid), False for a plain sample list."""
+    return hasattr(data, "valid") and getattr(data, "rgb", None) is not None and data.rgb.ndim == 4
+
+
+# -- outputs ----------------------------------------------------------------------------------
+def check_outputs(paths: Iterable[str | None], force: bool) -> list[Path]:
+    """Refuse, before any work, outputs that exist (unless ``force``) or have no folder."""
+    out = []
+    for path in paths:
+        if path is None:
+            continue
+        p = Path(path)
+        if p.is_dir():
+            raise UsageError(f"{path}: is a directory; give a file name for the output")
+        if p.exists() and not force:
+            raise UsageError(f"{path}: already exists; pass --force to overwrite it")
+        if not p.parent.is_dir() and str(p.parent) not in ("", "."):
+            raise UsageError(f"{path}: folder {str(p.parent)!r} does not exist; create it first")
+        out.append(p)
+    if len({q.resolve() for q in out}) != len(out):
+        raise UsageError("two outputs name the same file; give each output its own path")
+    return out
+
+
+def atomic_write(path, write: Callable[[Path], None]) -> Path:
+    """Call ``write(tmp)`` on a temporary file in ``path``'s folder, then rename it to ``path``.
+
+    The temporary name keeps the suffix (writers such as matplotlib pick the format by it). On
+    any failure the temporary file is removed, so no partial output is ever left.
+    """
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_text(path, text: str) -> Path:
+    return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+# -- progress ---------------------------------------------------------------------------------
+class Progress:
+    """Progress lines on stderr, only when stderr is a terminal and ``--quiet`` is not given."""
+
+    def __init__(self, quiet: bool = False, stream=None, force: bool | None = None):
+        self.stream = stream or sys.stderr
+        tty = getattr(self.stream, "isatty", lambda: False)()
+        self.enabled = (tty if force is None else force) and not quiet
+        self.start = time.perf_counter()
+
+    def __call__(self, *event) -> None:
+        """Print one event: a message, or whatever the fitter's ``progress`` callback passes."""
+        if not self.enabled:
+            return
+        text = " ".join(_describe(e) for e in event)
+        print(f"[{time.perf_counter() - self.start:6.1f}s] {text}", file=self.stream, flush=True)
+
+
+def _describe(event) -> str:
+    if isinstance(event, dict):
+        return " ".join(f"{k}={_short(v)}" for k, v in event.items())
+    return _short(event)
+
+
+def _short(value) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)

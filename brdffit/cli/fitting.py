@@ -1,0 +1,147 @@
+"""``brdffit fit FILE --model NAME``: fit a model, print a summary, write the requested outputs.
+
+Options come from three layers, later ones winning: the code's defaults, a preset
+(``--config``, see :mod:`brdffit.config`), then the flags. Every output is checked before the fit
+runs (an existing file needs ``--force``), so no work is wasted and nothing partial is left.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from ._common import (
+    Progress,
+    UsageError,
+    atomic_write,
+    check_outputs,
+    parse_assignments,
+    read_input,
+    write_text,
+)
+
+
+def _count_or_fraction(text: str):
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f"--subsample {text!r}: give a count (200000) or a fraction (0.1)") from None
+    return value if "." in text or "e" in text.lower() and value < 1 else int(value)
+
+
+def add_parser(sub, parents) -> None:
+    p = sub.add_parser(
+        "fit",
+        parents=parents,
+        help="fit a model to a MERL table or a sample list",
+        description="Fit a registered model to FILE (.binary MERL table, .csv/.npz sample list) "
+        "and print a summary: parameters with standard errors, error metrics, convergence, "
+        "parameters at a bound, time. Exit code 1 if the fit did not converge (outputs are "
+        "still written, marked success=false).",
+    )
+    p.add_argument("file", metavar="FILE", help="a .binary MERL table or a .csv/.npz sample list")
+    p.add_argument("--model", "-m", help="a registered model (see `brdffit models`); "
+                   "may come from the preset instead")
+    p.add_argument("--config", "-c", metavar="PRESET",
+                   help="a TOML preset: a path, or a bare name looked up as configs/NAME.toml")
+    p.add_argument("--loss", help="residual weighting: linear, cosine, log, relative (+huber)")
+    p.add_argument("--solver", help="lm (Levenberg-Marquardt), gauss-newton or dogleg")
+    p.add_argument("--cutoff", type=float, metavar="DEG",
+                   help="drop samples with θi or θo above DEG degrees")
+    p.add_argument("--fix", action="append", metavar="NAME=VALUE",
+                   help="hold a parameter at a value (f0=0.04 or f0=0.9,0.6,0.3); repeatable")
+    p.add_argument("--init", action="append", metavar="NAME=VALUE",
+                   help="start a parameter at a value; repeatable")
+    p.add_argument("--subsample", type=_count_or_fraction, metavar="N",
+                   help="fit on N randomly chosen valid samples (or a fraction like 0.1)")
+    p.add_argument("--seed", type=int, help="seed for subsampling and multi-start")
+    p.add_argument("--multistart", type=int, metavar="K", help="K extra random starts, best kept")
+    p.add_argument("--out", "-o", metavar="RESULT.json", help="write the result as JSON")
+    p.add_argument("--plot", metavar="FIG.png",
+                   help="write the diagnostic figures (FIG.png and FIG-<view>.png)")
+    p.add_argument("--table", metavar="FITTED.binary",
+                   help="write the fitted model rendered over the MERL grid")
+    p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
+    p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    p.set_defaults(run=run)
+
+
+def options_from(args):
+    """Preset (if any) merged with the flags, checked against the model's parameters."""
+    from .. import get_model
+    from ..config import FitOptions, load_config
+
+    flags = FitOptions(
+        model=args.model, loss=args.loss, solver=args.solver, cutoff=args.cutoff,
+        subsample=args.subsample, seed=args.seed, multistart=args.multistart,
+        init=parse_assignments(args.init, "--init"), fixed=parse_assignments(args.fix, "--fix"),
+        sources=("command line",),
+    )
+    preset = load_config(args.config) if args.config else FitOptions()
+    options = preset.merged(flags)
+    if options.model is None:
+        raise UsageError("no model given: pass --model NAME (see `brdffit models`) or a preset "
+                         "that names one")
+    model = get_model(options.model)
+    if options.cutoff is not None and not 0 < options.cutoff <= 90:
+        raise UsageError(f"--cutoff {options.cutoff:g}: give degrees in (0, 90]")
+    options.check_params(model)
+    _check_names(options)
+    return model, options
+
+
+def _check_names(options) -> None:
+    """Loss and solver names resolved now, so a typo fails before the input is read."""
+    from ..fit import get_loss
+
+    if options.loss is not None:
+        get_loss(options.loss)
+    if options.solver is not None:
+        try:
+            from ..fit import get_solver
+        except ImportError:
+            return
+        get_solver(options.solver)
+
+
+def run(args) -> int:
+    from .. import fit
+
+    model, options = options_from(args)
+    out, plot, table = (args.out, args.plot, args.table)
+    check_outputs([out, table] + _plot_paths(plot), args.force)
+    data = read_input(args.file)
+    progress = Progress(quiet=args.quiet or args.json)
+    progress(f"fitting {model.name} to {args.file}")
+    result = fit(data, model, **options.fit_kwargs(), throw=False, progress=progress)
+    print(result.to_json() if args.json else result.summary())
+    if out:
+        write_text(out, result.to_json() + "\n")
+    if table:
+        _write_table(result, table, progress)
+    if plot:
+        from .plotting import write_figures
+
+        write_figures(data, plot, model=model, params=result.params,
+                      converged=result.success, progress=progress)
+    if not result.success:
+        print(f"brdffit fit: warning: the fit did not converge ({result.message}); outputs "
+              f"were written and marked success=false", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _plot_paths(plot):
+    if not plot:
+        return []
+    from .plotting import figure_paths
+
+    return figure_paths(plot)
+
+
+def _write_table(result, path, progress) -> None:
+    from data_formats.merl import write_merl
+
+    progress(f"rendering the fitted model into {path}")
+    rendered = result.to_table()
+    atomic_write(path, lambda tmp: write_merl(tmp, rendered))

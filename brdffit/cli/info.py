@@ -1,0 +1,79 @@
+"""``brdffit info FILE``: the figures of a MERL table or a sample list (no fitting, no JAX)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ._common import is_table, read_input
+
+
+def add_parser(sub, parents) -> None:
+    p = sub.add_parser(
+        "info",
+        parents=parents,
+        help="print a table's figures (dims, valid fraction, channel ranges, peak)",
+        description="Print the figures of a MERL table (.binary) or a sample list (.csv, .npz): "
+        "dimensions, valid fraction, per-channel min/median/max over valid samples, the peak.",
+    )
+    p.add_argument("file", metavar="FILE", help="a .binary MERL table or a .csv/.npz sample list")
+    p.add_argument("--json", action="store_true", help="print the figures as JSON on stdout")
+    p.set_defaults(run=run, needs_jax=False)
+
+
+def sample_info(samples) -> dict:
+    """Figures of a sample list, in the spirit of ``MERLTable.info()``."""
+    valid = np.asarray(samples.valid, bool)
+    rgb = np.asarray(samples.rgb, float)[valid]
+    out = {"format": "sample list", "path": samples.path, "samples": len(samples),
+           "valid": int(valid.sum()), "valid_fraction": float(valid.mean()) if len(valid) else 0.0}
+    if rgb.size:
+        for c, name in enumerate("rgb"):
+            out[f"{name}_min"], out[f"{name}_median"], out[f"{name}_max"] = (
+                float(rgb[:, c].min()), float(np.median(rgb[:, c])), float(rgb[:, c].max()))
+        k = int(np.argmax(rgb.sum(axis=1)))
+        wi, wo = samples.wi[valid][k], samples.wo[valid][k]
+        out["peak_rgb"] = [float(v) for v in rgb[k]]
+        out["peak_theta_i_deg"], out["peak_theta_o_deg"] = (
+            float(np.degrees(np.arccos(np.clip(w[2], -1, 1)))) for w in (wi, wo))
+    return out
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _fmt(value) -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, (list, tuple)):
+        return "(" + ", ".join(_fmt(v) for v in value) + ")"
+    if isinstance(value, dict):
+        return ", ".join(f"{k}={_fmt(v)}" for k, v in value.items())
+    return str(value)
+
+
+def format_info(figures: dict) -> str:
+    width = max((len(str(k)) for k in figures), default=0)
+    return "\n".join(f"{str(k):<{width}}  {_fmt(v)}" for k, v in figures.items())
+
+
+def figures_of(data) -> dict:
+    if is_table(data):
+        return {"format": "MERL table", "path": str(data.path), **_jsonable(data.info())}
+    return sample_info(data)
+
+
+def run(args) -> int:
+    figures = _jsonable(figures_of(read_input(args.file)))
+    print(json.dumps(figures, indent=2) if args.json else format_info(figures))
+    return 0

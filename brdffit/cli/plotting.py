@@ -1,0 +1,80 @@
+"""``brdffit plot FILE [--fit result.json] -o fig.png``: the diagnostic figures.
+
+``-o fig.png`` writes ``fig-slice.png``, ``fig-peaks.png``, ``fig-albedo.png`` and
+``fig-spheres.png`` (see :func:`brdffit.plots.figure_paths`); an existing folder receives
+``slice.png`` etc. Existing files are not overwritten without ``--force``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ._common import UsageError, check_outputs, read_input
+
+
+def add_parser(sub, parents) -> None:
+    p = sub.add_parser(
+        "plot",
+        parents=parents,
+        help="write the diagnostic figures of a table (and of a fit)",
+        description="Write the diagnostic PNGs of FILE: the image slice at φd = 90° (measured | "
+        "fitted | log ratio), specular-peak curves, directional albedo, lit spheres. With --fit, "
+        "the fitted model from a `brdffit fit --out` result is drawn beside the measurement.",
+    )
+    p.add_argument("file", metavar="FILE", help="a .binary MERL table or a .csv/.npz sample list")
+    p.add_argument("--fit", metavar="RESULT.json", help="a result written by `brdffit fit --out`")
+    p.add_argument("--output", "-o", required=True, metavar="FIG.png",
+                   help="FIG.png → FIG-slice.png, FIG-peaks.png, FIG-albedo.png, FIG-spheres.png; "
+                   "an existing folder receives slice.png, ...")
+    p.add_argument("--force", action="store_true", help="overwrite existing figures")
+    p.set_defaults(run=run)
+
+
+def figure_paths(path) -> list[Path]:
+    from ..plots import figure_paths as paths
+
+    return paths(path)
+
+
+def write_figures(data, path, *, model=None, params=None, converged=True, progress=None):
+    """Write the diagnostic PNGs (atomically, by :func:`brdffit.plots.diagnostics`)."""
+    from ..plots import diagnostics, format_error, rms_log_error
+
+    error = None
+    if model is not None:
+        error = format_error(rms_log_error(data, model, params))
+        if not converged:
+            error += " (fit NOT converged)"
+    if progress is not None:
+        progress(f"writing figures {', '.join(str(p) for p in figure_paths(path))}")
+    return diagnostics(data, model, params, path=path, error=error)
+
+
+def _read_result(path):
+    from ..fit import FitResult
+
+    p = Path(path)
+    if not p.is_file():
+        raise UsageError(f"--fit {path}: no such file (write one with `brdffit fit ... --out`)")
+    try:
+        return FitResult.from_json(p.read_text(encoding="utf-8"))
+    except (ValueError, KeyError, TypeError) as exc:
+        raise UsageError(f"--fit {path}: not a brdffit result ({type(exc).__name__}: {exc})") \
+            from None
+
+
+def run(args) -> int:
+    from ._common import Progress
+
+    result = _read_result(args.fit) if args.fit else None
+    check_outputs(figure_paths(args.output), args.force)
+    data = read_input(args.file)
+    model = params = None
+    if result is not None:
+        model, params = result.model, result.params
+    written = write_figures(data, args.output, model=model, params=params,
+                            converged=result is None or result.success,
+                            progress=Progress(args.quiet))
+    if not args.quiet:
+        print("wrote " + ", ".join(str(p) for p in written))
+    return 0

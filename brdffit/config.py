@@ -1,0 +1,246 @@
+"""TOML presets → fit options: the one place where option *names* meet the library.
+
+A preset (``configs/<name>.toml``) names some of the options of :func:`brdffit.fit`; what it does
+not name keeps the default that lives in code. Layers merge left to right (preset, then
+command-line flags), a later layer winning key by key. Layout (every key optional)::
+
+    description = "free text, shown by `brdffit fit`"
+    model = "ggx"                 # a registered model name
+    loss = "cosine"               # a registered loss name
+    cutoff = 80.0                 # degrees: drop samples with θi or θo beyond it (0 < cutoff ≤ 90)
+    subsample = 200000            # fit on at most this many valid samples
+    seed = 0                      # for subsampling and multi-start
+    multistart = 0                # extra random starts, best kept
+
+    [solver]                      # solver and its tolerances
+    name = "lm"
+    rtol = 1e-8
+    atol = 1e-8
+    max_steps = 256
+
+    [init]                        # start values: a number, or [r, g, b] for an RGB parameter
+    alpha = 0.1
+    [fixed]                       # parameters held at the given value
+    f0 = 0.04
+    [bounds]                      # [lower, upper] narrowing a parameter's physical bounds
+    alpha = [0.001, 0.5]
+
+Unknown keys and wrong types raise :class:`~brdffit.errors.ConfigError` naming the key and the
+valid choices; unknown model or parameter names raise :class:`~brdffit.errors.UnknownNameError`.
+Presets are loaded by path (``configs/`` is not part of the installed package); a bare name such
+as ``ggx`` is looked up as ``configs/ggx.toml`` in the working directory, then in the checkout
+this module was imported from.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+
+from .errors import ConfigError
+
+_SCALARS = {  # key -> (types, check, what the check wants)
+    "model": (str, None, "a model name"),
+    "loss": (str, None, "a loss name"),
+    "cutoff": ((int, float), lambda v: 0 < v <= 90, "degrees in (0, 90]"),
+    "subsample": (int, lambda v: v > 0, "a positive integer"),
+    "seed": (int, lambda v: v >= 0, "a non-negative integer"),
+    "multistart": (int, lambda v: v >= 0, "a non-negative integer"),
+}
+_SOLVER = {
+    "name": (str, None, "a solver name"),
+    "rtol": ((int, float), lambda v: v > 0, "a positive number"),
+    "atol": ((int, float), lambda v: v > 0, "a positive number"),
+    "max_steps": (int, lambda v: v > 0, "a positive integer"),
+}
+_TABLES = ("init", "fixed", "bounds", "solver")
+_FREE_TEXT = ("description",)
+VALID_KEYS = tuple(_SCALARS) + _TABLES + _FREE_TEXT
+
+
+@dataclasses.dataclass(frozen=True)
+class FitOptions:
+    """Options for :func:`brdffit.fit`; ``None`` (or an empty mapping) means "the code's default".
+
+    ``solver`` holds the solver name; ``rtol``, ``atol``, ``max_steps`` its tolerances.
+    ``init`` and ``fixed`` map parameter names to a number or an RGB triple; ``bounds`` maps
+    parameter names to ``(lower, upper)``. ``sources`` lists the presets merged in.
+    """
+
+    model: str | None = None
+    loss: str | None = None
+    solver: str | None = None
+    cutoff: float | None = None
+    subsample: int | None = None
+    seed: int | None = None
+    multistart: int | None = None
+    rtol: float | None = None
+    atol: float | None = None
+    max_steps: int | None = None
+    init: Mapping = dataclasses.field(default_factory=dict)
+    fixed: Mapping = dataclasses.field(default_factory=dict)
+    bounds: Mapping = dataclasses.field(default_factory=dict)
+    description: str = ""
+    sources: tuple[str, ...] = ()
+
+    def merged(self, later: "FitOptions") -> "FitOptions":
+        """``self`` overridden by ``later``: set scalars win; parameter tables merge by name.
+
+        A parameter given a start value in ``later`` is freed (dropped from ``fixed``), and one
+        fixed in ``later`` loses its start value, so the later layer's intent wins.
+        """
+        out = {}
+        for f in dataclasses.fields(self):
+            mine, theirs = getattr(self, f.name), getattr(later, f.name)
+            if f.name in ("init", "fixed", "bounds"):
+                out[f.name] = {**mine, **theirs}
+            elif f.name == "sources":
+                out[f.name] = mine + theirs
+            else:
+                out[f.name] = theirs if theirs not in (None, "") else mine
+        out["fixed"] = {k: v for k, v in out["fixed"].items() if k not in later.init}
+        out["init"] = {k: v for k, v in out["init"].items() if k not in later.fixed}
+        return FitOptions(**out)
+
+    def fit_kwargs(self) -> dict:
+        """Keyword arguments for :func:`brdffit.fit`: only what was set (the model excluded)."""
+        keys = ("loss", "solver", "cutoff", "subsample", "seed", "multistart",
+                "rtol", "atol", "max_steps")
+        kwargs = {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
+        for k in ("init", "fixed", "bounds"):
+            if getattr(self, k):
+                kwargs[k] = dict(getattr(self, k))
+        return kwargs
+
+    def check_params(self, model) -> "FitOptions":
+        """Check parameter names, shapes and values against ``model`` (a :class:`Model`)."""
+        for table in ("init", "fixed"):
+            for name, value in getattr(self, table).items():
+                param = model.param(name)  # UnknownNameError lists the valid names
+                _with_context(f"[{table}] {name}", param.check_bounds, value)
+        for name, (lo, hi) in self.bounds.items():
+            param = model.param(name)
+            if not param.lower <= lo < hi <= param.upper:
+                raise ConfigError(
+                    f"[bounds] {name} = [{lo:g}, {hi:g}] must satisfy {param.lower:g} ≤ lower < "
+                    f"upper ≤ {param.upper:g} (the parameter's physical bounds)"
+                )
+        return self
+
+
+def _with_context(where, fn, *args):
+    try:
+        return fn(*args)
+    except ConfigError:
+        raise
+    except ValueError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+
+
+def _unknown_key(where: str, key: str, valid) -> ConfigError:
+    close = difflib.get_close_matches(key, list(valid), n=1)
+    hint = f" Did you mean {close[0]!r}?" if close else ""
+    return ConfigError(
+        f"{where}unknown key {key!r}; valid keys: {', '.join(valid)}.{hint}"
+    )
+
+
+def _check_scalar(where: str, key: str, value, spec):
+    types, check, want = spec
+    if isinstance(value, bool) or not isinstance(value, types):
+        raise ConfigError(
+            f"{where}{key!r} must be {want}, got {type(value).__name__} {value!r}"
+        )
+    if check is not None and not check(value):
+        raise ConfigError(f"{where}{key!r} must be {want}, got {value!r}")
+    return float(value) if types == (int, float) else value
+
+
+def _param_value(where: str, key: str, value):
+    """A number or a list of three numbers (an RGB parameter)."""
+    ok_number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    ok_rgb = isinstance(value, list) and len(value) == 3 and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+    )
+    if not (ok_number or ok_rgb):
+        raise ConfigError(
+            f"{where}{key!r} must be a number or a list of 3 numbers [r, g, b], got {value!r}"
+        )
+    return float(value) if ok_number else tuple(float(v) for v in value)
+
+
+def _bounds_value(where: str, key: str, value):
+    pair = isinstance(value, list) and len(value) == 2
+    if not pair or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        raise ConfigError(f"{where}{key!r} must be [lower, upper], got {value!r}")
+    lo, hi = float(value[0]), float(value[1])
+    if not lo < hi:
+        raise ConfigError(f"{where}{key!r} = {value!r}: lower must be below upper")
+    return (lo, hi)
+
+
+def _table(where: str, key: str, value) -> dict:
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where}{key!r} must be a table ([{key}]), got {value!r}")
+    return value
+
+
+def parse_config(data: Mapping, source: str = "<config>") -> FitOptions:
+    """Validate a decoded TOML mapping into :class:`FitOptions` (names checked later)."""
+    where = f"{source}: "
+    opts: dict = {"sources": (source,)}
+    for key, value in data.items():
+        if key in _SCALARS:
+            opts[key] = _check_scalar(where, key, value, _SCALARS[key])
+        elif key == "description":
+            opts[key] = _check_scalar(where, key, value, (str, None, "a string"))
+        elif key == "solver":
+            for sub, v in _table(where, key, value).items():
+                if sub not in _SOLVER:
+                    raise _unknown_key(f"{where}[solver] ", sub, _SOLVER)
+                opts["solver" if sub == "name" else sub] = _check_scalar(
+                    f"{where}[solver] ", sub, v, _SOLVER[sub]
+                )
+        elif key in ("init", "fixed", "bounds"):
+            conv = _bounds_value if key == "bounds" else _param_value
+            opts[key] = {k: conv(f"{where}[{key}] ", k, v) for k, v in _table(where, key, value).items()}
+        else:
+            raise _unknown_key(where, key, VALID_KEYS)
+    return FitOptions(**opts)
+
+
+def find_config(name_or_path) -> Path:
+    """The preset file for a path, or for a bare name (``ggx`` → ``configs/ggx.toml``)."""
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    bare = path.parent == Path(".") and path.suffix == ""
+    if bare:
+        checkout = Path(__file__).resolve().parent.parent / "configs"
+        for folder in (Path("configs"), checkout):
+            candidate = folder / f"{path.name}.toml"
+            if candidate.is_file():
+                return candidate
+        found = sorted(p.stem for p in checkout.glob("*.toml")) if checkout.is_dir() else []
+        known = f"; presets in {checkout}: {', '.join(found)}" if found else ""
+        raise ConfigError(
+            f"no preset named {path.name!r} (looked for configs/{path.name}.toml here and in the "
+            f"checkout){known}; pass a path to a .toml file"
+        )
+    raise ConfigError(f"config file {str(path)!r} not found; pass a path to a .toml preset")
+
+
+def load_config(name_or_path) -> FitOptions:
+    """Read and validate a TOML preset (by path, or a bare name: see :func:`find_config`)."""
+    path = find_config(name_or_path)
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read the preset ({exc.strerror})") from None
+    return parse_config(data, str(path))

@@ -1,0 +1,3 @@
+from brdffit.cli import main
+
+raise SystemExit(main())
