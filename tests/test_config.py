@@ -1,0 +1,141 @@
+"""TOML presets: every shipped preset loads and validates; layers merge; mistakes are named."""
+
+import tomllib
+from pathlib import Path
+
+import pytest
+
+import brdffit
+from brdffit.config import FitOptions, find_config, load_config, parse_config
+from brdffit.errors import ConfigError, UnknownNameError
+
+CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+PRESETS = sorted(CONFIGS.glob("*.toml"))
+
+
+@pytest.mark.parametrize("name", brdffit.available_models())
+def test_every_registered_model_has_a_preset(name):
+    path = CONFIGS / f"{name}.toml"
+    assert path.is_file(), f"configs/{name}.toml is missing: one preset per registered model"
+    opts = load_config(path)
+    assert opts.model == name
+    model = brdffit.get_model(name)
+    opts.check_params(model)  # names, shapes and values against the registry
+    assert set(opts.bounds) | set(opts.fixed) == set(model.names)
+    for pname, (lo, hi) in opts.bounds.items():  # documented bounds are the registry's own
+        assert (lo, hi) == (model.param(pname).lower, model.param(pname).upper)
+
+
+@pytest.mark.parametrize("path", PRESETS, ids=[p.stem for p in PRESETS])
+def test_every_preset_loads_and_names_valid_loss_and_solver(path):
+    from brdffit.fit.losses import LOSSES
+    from brdffit.fit.solvers import SOLVERS
+
+    opts = load_config(path)
+    assert opts.sources == (str(path),) and opts.description
+    assert opts.loss in LOSSES
+    assert opts.solver is None or opts.solver in SOLVERS
+
+
+def test_ngan2005_protocol():
+    opts = load_config(CONFIGS / "ngan2005.toml")
+    assert (opts.loss, opts.cutoff, opts.model) == ("cosine", 80.0, None)
+    text = (CONFIGS / "ngan2005.toml").read_text()
+    assert "does not reproduce" in text and "80°" in text
+
+
+def test_parse_full_layout():
+    data = tomllib.loads(
+        """
+        model = "ggx"
+        loss = "log"
+        cutoff = 75
+        subsample = 1000
+        seed = 3
+        multistart = 2
+        [solver]
+        name = "dogleg"
+        rtol = 1e-6
+        max_steps = 50
+        [init]
+        alpha = 0.2
+        [fixed]
+        f0 = [0.9, 0.6, 0.3]
+        [bounds]
+        alpha = [0.01, 0.5]
+        """
+    )
+    opts = parse_config(data, "x.toml")
+    assert opts.fit_kwargs() == {
+        "loss": "log", "solver": "dogleg", "cutoff": 75.0, "subsample": 1000, "seed": 3,
+        "multistart": 2, "rtol": 1e-6, "max_steps": 50, "init": {"alpha": 0.2},
+        "fixed": {"f0": (0.9, 0.6, 0.3)}, "bounds": {"alpha": (0.01, 0.5)},
+    }
+    assert isinstance(opts.cutoff, float)
+    opts.check_params(brdffit.get_model("ggx"))
+
+
+def test_flags_override_preset_and_free_fixed_parameters():
+    preset = FitOptions(model="ggx", loss="log", cutoff=80.0, fixed={"f0": 0.04, "alpha": 0.1},
+                        init={"diffuse": 0.3}, sources=("p.toml",))
+    flags = FitOptions(loss="cosine", init={"f0": 0.5}, fixed={"diffuse": 0.1})
+    out = preset.merged(flags)
+    assert (out.model, out.loss, out.cutoff) == ("ggx", "cosine", 80.0)
+    assert out.fixed == {"alpha": 0.1, "diffuse": 0.1}  # f0 freed by --init, diffuse fixed
+    assert out.init == {"f0": 0.5}
+    assert out.sources == ("p.toml",)
+    assert FitOptions().merged(FitOptions()).fit_kwargs() == {}
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("cutof = 80", "unknown key 'cutof'; valid keys: model, loss, cutoff"),
+        ("cutof = 80", "Did you mean 'cutoff'?"),
+        ('cutoff = "80"', "'cutoff' must be degrees in (0, 90], got str '80'"),
+        ("cutoff = 95", "'cutoff' must be degrees in (0, 90], got 95"),
+        ("subsample = 1.5", "'subsample' must be a positive integer, got float 1.5"),
+        ("seed = true", "'seed' must be a non-negative integer, got bool True"),
+        ("model = 3", "'model' must be a model name, got int 3"),
+        ("init = 3", "'init' must be a table ([init]), got 3"),
+        ("[init]\nalpha = 'x'", "[init] 'alpha' must be a number or a list of 3 numbers"),
+        ("[fixed]\nf0 = [1, 2]", "[fixed] 'f0' must be a number or a list of 3 numbers"),
+        ("[bounds]\nalpha = [0.5, 0.1]", "[bounds] 'alpha' = [0.5, 0.1]: lower must be below upper"),
+        ("[bounds]\nalpha = 0.5", "[bounds] 'alpha' must be [lower, upper]"),
+        ("[solver]\nrtoll = 1e-6", "[solver] unknown key 'rtoll'; valid keys: name, rtol, atol"),
+        ("[solver]\nmax_steps = 0", "[solver] 'max_steps' must be a positive integer, got 0"),
+    ],
+)
+def test_mistakes_name_the_key_and_the_choices(tmp_path, text, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(text + "\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert message in str(err.value) and str(path) in str(err.value)
+
+
+def test_parameter_names_and_values_checked_against_the_model():
+    ggx = brdffit.get_model("ggx")
+    with pytest.raises(UnknownNameError, match="unknown parameter of model 'ggx' 'alpah'.*alpha"):
+        FitOptions(init={"alpah": 0.1}).check_params(ggx)
+    with pytest.raises(ConfigError, match=r"\[fixed\] alpha: .*outside its bounds"):
+        FitOptions(fixed={"alpha": 5.0}).check_params(ggx)
+    with pytest.raises(ConfigError, match=r"\[init\] f0: .*takes shape \(3,\)"):
+        FitOptions(init={"f0": (0.1, 0.2)}).check_params(ggx)
+    with pytest.raises(ConfigError, match=r"\[bounds\] alpha = \[0.0001, 0.5\] must satisfy"):
+        FitOptions(bounds={"alpha": (1e-4, 0.5)}).check_params(ggx)
+
+
+def test_bare_names_paths_and_bad_files(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # not the checkout: a bare name still finds the checkout's preset
+    assert find_config("ggx") == CONFIGS / "ggx.toml"
+    (tmp_path / "configs").mkdir()
+    (tmp_path / "configs" / "ggx.toml").write_text('loss = "linear"\n')
+    assert load_config("ggx").loss == "linear"  # ./configs wins over the checkout
+    with pytest.raises(ConfigError, match="no preset named 'nope'.*presets in .*ggx"):
+        load_config("nope")
+    with pytest.raises(ConfigError, match="config file 'some/where.toml' not found"):
+        load_config("some/where.toml")
+    (tmp_path / "broken.toml").write_text("loss = \n")
+    with pytest.raises(ConfigError, match="broken.toml: not valid TOML"):
+        load_config(tmp_path / "broken.toml")
