@@ -11,6 +11,7 @@ yourself for float64 (the CLI and the tests do).
 
 from .errors import BrdffitError, ConfigError, FitError, UnknownNameError
 from .models import Model, Param, available_models, get_model, register
+from .fit import FitResult, fit, get_loss
 
 __version__ = "0.1.0"
 
@@ -18,10 +19,13 @@ __all__ = [
     "BrdffitError",
     "ConfigError",
     "FitError",
+    "FitResult",
     "Model",
     "Param",
     "UnknownNameError",
     "available_models",
+    "fit",
+    "get_loss",
     "get_model",
     "register",
 ]

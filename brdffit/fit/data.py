@@ -1,0 +1,145 @@
+"""From a :class:`~data_formats.SampleSet` to fixed-shape device arrays and residual weights.
+
+Selection happens in two stages, so that every table of one layout compiles once:
+
+* **static** (depends on the directions and the options only, never on the measured values):
+  cells with both directions above the horizon, within the angle ``cutoff``, and, if asked, a
+  seeded ``subsample`` of a fixed size. This sets the array shapes.
+* **dynamic** (weights): the validity mask, non-finite values and negative values become zero
+  weights and zero targets. Masked cells cost compute but never change the shapes.
+
+Burley 2012 §3.1/§4.7: data past about 75–80° is extrapolated in the MERL set; ``cutoff=80``
+drops it. The default keeps everything (the caller decides).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import ConfigError, FitError
+from .losses import Loss
+
+#: Fewer usable cells than this (times the number of free parameters) is an error.
+MIN_CELLS_PER_PARAM = 3
+
+
+@dataclasses.dataclass(frozen=True)
+class Subsample:
+    """A fixed-size subset of the usable cells, chosen with the fit's ``seed``.
+
+    Attributes:
+        size: an ``int`` (number of cells) or a ``float`` in ``(0, 1]`` (fraction of usable cells).
+        method: ``"random"`` (uniform without replacement) or ``"stratified"`` (equal-count strata
+            along ``θh``, one random cell each, so the specular peak is always represented).
+    """
+
+    size: int | float
+    method: str = "random"
+
+    def count(self, n: int) -> int:
+        if isinstance(self.size, float) and not isinstance(self.size, bool):
+            if not 0.0 < self.size <= 1.0:
+                raise ConfigError(f"subsample fraction must be in (0, 1], got {self.size!r}")
+            return max(1, int(round(self.size * n)))
+        if int(self.size) < 1:
+            raise ConfigError(f"subsample size must be a positive count, got {self.size!r}")
+        return min(int(self.size), n)
+
+    def choose(self, theta_h: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Indices (sorted) of the kept cells among ``len(theta_h)`` usable ones."""
+        n = len(theta_h)
+        k = self.count(n)
+        if self.method == "random":
+            return np.sort(rng.choice(n, size=k, replace=False))
+        if self.method == "stratified":
+            order = np.argsort(theta_h, kind="stable")
+            edges = np.linspace(0, n, k + 1).astype(int)
+            picks = edges[:-1] + (rng.random(k) * np.maximum(np.diff(edges), 1)).astype(int)
+            return np.sort(order[np.minimum(picks, n - 1)])
+        raise ConfigError(
+            f"unknown subsample method {self.method!r}; valid methods: random, stratified"
+        )
+
+
+def as_subsample(subsample) -> Subsample | None:
+    """``None``, a :class:`Subsample`, an ``int`` count or a ``float`` fraction."""
+    if subsample is None or isinstance(subsample, Subsample):
+        return subsample
+    if isinstance(subsample, (int, float, np.integer, np.floating)):
+        return Subsample(subsample.item() if hasattr(subsample, "item") else subsample)
+    raise ConfigError(
+        f"subsample must be None, a count, a fraction or a Subsample, got {subsample!r}"
+    )
+
+
+class FitData(eqx.Module):
+    """Device arrays of the selected cells (``n`` rows); the residual of cell ``k`` channel ``c``
+    is ``sqrt_weight[k, c] * (g(pred) - target[k, c])``."""
+
+    wi: jax.Array
+    wo: jax.Array
+    cos_i: jax.Array  # (n, 1)
+    cos_o: jax.Array  # (n, 1)
+    rgb: jax.Array  # measured f_r, zero where masked
+    target: jax.Array  # g(rgb)
+    sqrt_weight: jax.Array  # (n, 3); zero where masked
+
+
+@dataclasses.dataclass(frozen=True)
+class Selection:
+    """What was selected: counts for the result, and the data on the device."""
+
+    data: FitData
+    index: np.ndarray  # rows of the SampleSet that were kept (static selection)
+    n_total: int
+    n_usable: int  # above the horizon and within the cutoff
+    n_used: int  # of the selected rows, those with a valid value
+
+
+def _static_rows(wi, wo, cutoff):
+    ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    if cutoff is not None:
+        c = float(cutoff)
+        if not 0.0 < c <= 90.0:
+            raise ConfigError(f"cutoff is an angle in degrees in (0, 90], got {cutoff!r}")
+        cmin = np.cos(np.radians(c))
+        ok &= (wi[:, 2] >= cmin) & (wo[:, 2] >= cmin)
+    return np.flatnonzero(ok)
+
+
+def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype=np.float64):
+    """Build the :class:`FitData` for ``samples`` (a ``SampleSet``) under ``loss``."""
+    wi, wo = np.asarray(samples.wi, float), np.asarray(samples.wo, float)
+    rows = _static_rows(wi, wo, cutoff)
+    n_usable = len(rows)
+    sub = as_subsample(subsample)
+    if sub is not None and n_usable:
+        h = wi[rows] + wo[rows]
+        theta_h = np.arccos(np.clip(h[:, 2] / np.linalg.norm(h, axis=1), -1, 1))
+        rows = rows[sub.choose(theta_h, np.random.default_rng(seed))]
+    rgb = np.asarray(samples.rgb, float)[rows]
+    good = np.asarray(samples.valid, bool)[rows] & np.all(np.isfinite(rgb) & (rgb >= 0), axis=1)
+    rgb = np.where(good[:, None], rgb, 0.0)
+    ci, co = wi[rows, 2:3], wo[rows, 2:3]
+    target = np.asarray(loss.transform(jnp.asarray(rgb), ci, co))
+    sw = np.sqrt(loss.weight(rgb, ci, co)) * good[:, None]
+    arrays = [wi[rows], wo[rows], ci, co, rgb, np.where(good[:, None], target, 0.0), sw]
+    data = FitData(*(jnp.asarray(a, dtype=dtype) for a in arrays))
+    return Selection(data, rows, len(wi), n_usable, int(np.count_nonzero(good)))
+
+
+def check_enough(selection: Selection, n_free: int, name: str = "") -> None:
+    """Raise :class:`FitError` when the selection cannot determine ``n_free`` parameters."""
+    need = MIN_CELLS_PER_PARAM * max(n_free, 1)
+    if selection.n_used < need:
+        raise FitError(
+            f"table {name or '(unnamed)'} has {selection.n_used} usable valid cells out of "
+            f"{selection.n_total} (above the horizon, within the cutoff, finite, non-negative); "
+            f"fitting {n_free} free parameters needs at least {need}. Check the validity mask "
+            f"and NaNs in the data, or relax `cutoff`/`subsample`."
+        )

@@ -1,0 +1,80 @@
+"""From the solver's raw output to a :class:`FitResult`: verdict, bounds, covariance, metrics."""
+
+from __future__ import annotations
+
+import time
+
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from ..errors import FitError
+from .result import FitResult
+from .statistics import covariance, gauss_newton_at, metrics_at
+from .transforms import at_bound
+
+
+def _message(code: int, finite: bool, max_steps_hint: str) -> tuple[str, str]:
+    if not finite:
+        return "nonfinite", (
+            "the solver produced non-finite parameters or cost; the result reports the starting "
+            "point. Try another `init`, `multistart`, or the `log` loss."
+        )
+    names = {int(v._value): k for k, v in optx.RESULTS._name_to_item.items()}  # noqa: SLF001
+    status = names.get(code, str(code))
+    text = optx.RESULTS._index_to_message[code] if code else ""  # noqa: SLF001
+    if status in ("nonlinear_max_steps_reached", "max_steps_reached"):
+        text += max_steps_hint
+    return status, text
+
+
+def _by_param(model, flat):
+    out, i = {}, 0
+    for p in model.params:
+        v = flat[i : i + p.size]
+        out[p.name] = float(v[0]) if p.shape == () else [float(a) for a in v]
+        i += p.size
+    return out
+
+
+def make_result(*, model, problem, sel, u, u0, code, steps, costs, x_start, fixed_idx, loss,
+                solver, throw, name, times, emit):
+    """Assemble the :class:`FitResult` (raises :class:`FitError` on failure if ``throw``)."""
+    finite = bool(np.all(np.isfinite(u)))
+    u = u if finite else np.asarray(u0)
+    status, message = _message(int(code), finite, " Increase `max_steps` or start elsewhere.")
+    success = finite and int(code) == 0
+    if throw and not success:
+        raise FitError(f"{model.name} fit of {name or 'table'} did not converge: {message}")
+    x_free = problem.physical(jnp.asarray(u))
+    bound = at_bound(u)
+    keep = jnp.asarray(bound == 0)
+    metrics, cost, m = metrics_at(problem, x_free, sel.data)
+    r, jtj = gauss_newton_at(problem, x_free, sel.data, keep)
+    sum_r2 = float(jnp.sum(jnp.square(r.astype(jtj.dtype))))
+    cov_free, regular = covariance(jtj, sum_r2, float(m), bound == 0)
+    if not regular and not message:
+        message = "JᵀJ is singular at the optimum: some parameters are not identified by the data"
+    x = np.asarray(problem.full_vector(x_free), float)
+    names = model.flat_names()
+    free = list(problem.free)
+    cov = np.zeros((len(x), len(x)))
+    cov[np.ix_(free, free)] = cov_free
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    se[[f for f, b in zip(free, bound) if b != 0]] = np.nan
+    t0, t1, t2 = times
+    t3 = time.perf_counter()
+    result = FitResult(
+        model_name=model.name, params=_by_param(model, x), stderr=_by_param(model, se),
+        names=names, x=x, cov=cov, free=[names[i] for i in free],
+        fixed=[names[i] for i in fixed_idx],
+        at_bound={names[f]: ("lower" if b < 0 else "upper") for f, b in zip(free, bound) if b},
+        cost=float(cost), metrics={k: float(v) for k, v in metrics.items()},
+        success=success, status=status, message=message, steps=int(steps),
+        starts=[float(c) for c in costs], loss=loss.label, solver=solver,
+        n_cells=sel.n_used, n_total=sel.n_total, init=_by_param(model, x_start),
+        wall_time=t3 - t0, timings={"prepare": t1 - t0, "solve": t2 - t1, "finish": t3 - t2},
+        table=name,
+    )
+    emit(success=success, cost=result.cost)
+    return result

@@ -1,0 +1,111 @@
+r"""Data-driven starting points: diffuse level, specular peak height and width.
+
+Measured features (NumPy, on the selected valid cells; ``θh`` the half angle, ``θd`` the
+difference angle, Rusinkiewicz 1998):
+
+* **diffuse level** ``ρ_d`` (RGB): ``π`` times the median of cells far from the peak
+  (``40° ≤ θh ≤ 70°``, both directions within 60° of the normal);
+* **peak height** ``H`` (RGB): the specular excess ``ρ - ρ_d/π`` of the cells nearest ``θh = 0``
+  (``θd < 40°``, so Fresnel is still near ``F0``);
+* **peak width** ``θ½``: the half angle where the excess falls to ``H/2``. For GGX
+  (RTR eq. 9.41) ``D(θh)/D(0) = 1/2`` at ``tan²θh = α²(√2 − 1)``, so
+  ``α ≈ tan θ½ / 0.6436``; at the peak ``f ≈ F0 D(0) / (4 cos²θd)`` (RTR eq. 9.34 with
+  ``G2 ≈ 1``), so ``F0 ≈ 4π α² cos²θd H``.
+
+These features are mapped onto the model's parameters by name (``diffuse``, ``f0*``,
+``alpha*``, Disney's ``base_color``/``metallic``/``roughness``/``specular``); any parameter not
+recognised keeps its declared default. The map is a convention of this module, not a formula of
+the sources, and is only a starting point for the solver.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+GGX_HALF_WIDTH = np.sqrt(np.sqrt(2.0) - 1.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Features:
+    """What :func:`measure` reads off the data (all positive, in physical units)."""
+
+    diffuse: np.ndarray  # albedo ρ_d, RGB
+    height: np.ndarray  # specular excess at the peak, RGB
+    alpha: float  # GGX-equivalent roughness from the peak width
+    f0: np.ndarray  # Schlick F0 from height and width, RGB
+
+
+def _angles(wi, wo):
+    h = wi + wo
+    h = h / np.linalg.norm(h, axis=1, keepdims=True)
+    theta_h = np.arccos(np.clip(h[:, 2], -1.0, 1.0))
+    theta_d = np.arccos(np.clip(np.sum(wi * h, axis=1), -1.0, 1.0))
+    return theta_h, theta_d
+
+
+def _half_width(theta_h, excess, height):
+    """``θh`` where the binned median of the (channel-mean) excess first drops below ``H/2``."""
+    edges = np.concatenate([[0.0], np.geomspace(2e-4, np.radians(80.0), 64)])
+    idx = np.digitize(theta_h, edges) - 1
+    for b in range(len(edges) - 1):
+        sel = idx == b
+        if np.count_nonzero(sel) >= 3 and np.median(excess[sel]) < 0.5 * height:
+            return 0.5 * (edges[b] + edges[b + 1])
+    return np.radians(60.0)
+
+
+def measure(rgb, wi, wo, good) -> Features:
+    """Read diffuse level, peak height and width off valid cells (see the module docstring)."""
+    rgb, wi, wo = rgb[good], wi[good], wo[good]
+    theta_h, theta_d = _angles(wi, wo)
+    far = (theta_h > np.radians(40)) & (theta_h < np.radians(70))
+    far &= (wi[:, 2] > 0.5) & (wo[:, 2] > 0.5)
+    base = rgb[far] if np.count_nonzero(far) >= 10 else rgb
+    diffuse = np.clip(np.pi * np.median(base, axis=0), 1e-3, 0.95)
+    excess = rgb - diffuse / np.pi
+    near = theta_d < np.radians(40)
+    if np.count_nonzero(near) < 10:
+        near = np.ones(len(rgb), bool)
+    order = np.argsort(theta_h[near])[:5]
+    height = np.maximum(np.median(excess[near][order], axis=0), 1e-6)
+    theta_half = _half_width(theta_h[near], excess[near].mean(axis=1), height.mean())
+    alpha = float(np.clip(np.tan(theta_half) / GGX_HALF_WIDTH, 2e-3, 0.9))
+    cos_d = np.cos(np.median(theta_d[near][order]))
+    f0 = np.clip(4 * np.pi * alpha**2 * cos_d**2 * height, 0.01, 0.95)
+    return Features(diffuse, height, alpha, f0)
+
+
+def _disney(feat: Features) -> dict:
+    metal = float(np.mean(feat.f0)) > 0.25
+    return {
+        "base_color": np.clip(feat.f0 if metal else feat.diffuse, 0.02, 0.98),
+        "metallic": 0.9 if metal else 0.1,
+        "roughness": float(np.clip(np.sqrt(feat.alpha), 0.05, 0.95)),
+        "specular": float(np.clip(np.mean(feat.f0) / 0.08, 0.05, 0.95)),
+    }
+
+
+def guess(model, feat: Features) -> dict:
+    """A starting parameter dict for ``model`` from measured :class:`Features`."""
+    by_name = {
+        "diffuse": feat.diffuse,
+        "f0": feat.f0,
+        "f0_1": feat.f0,
+        "f0_2": np.clip(0.3 * feat.f0, 0.005, 0.5),
+        "alpha": feat.alpha,
+        "alpha_x": feat.alpha,
+        "alpha_y": feat.alpha,
+        "alpha_1": feat.alpha,
+        "alpha_2": min(0.9, 4.0 * feat.alpha),
+    }
+    if model.name == "disney":
+        by_name = _disney(feat)
+    out = {}
+    for p in model.params:
+        if p.name in by_name:
+            v = np.broadcast_to(np.asarray(by_name[p.name], float), p.shape)
+            width = p.upper - p.lower
+            out[p.name] = np.clip(v, p.lower + 1e-3 * width, p.upper - 1e-3 * width)
+    return out

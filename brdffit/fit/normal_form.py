@@ -1,0 +1,103 @@
+r"""The Gauss–Newton normal form of a tall least-squares problem, for optimistix's solvers.
+
+A MERL table gives ``m ≈ 3.3 million`` residuals for ``p ≈ 7`` parameters. Optimistix's
+Gauss–Newton family (Levenberg–Marquardt, Gauss–Newton, Dogleg) uses the residual ``r`` and the
+Jacobian ``J`` only through
+
+* the cost :math:`\tfrac12\|r\|^2`,
+* the gradient :math:`J^\top r` and
+* the quadratic model :math:`\tfrac12\|J\delta + r\|^2`, i.e. :math:`J^\top J`.
+
+Factor :math:`J^\top J = R^\top R` (``R`` is ``p × p``; from an eigendecomposition, so a
+rank-deficient ``J`` is fine) and define the compressed residual of length ``p + 1``
+
+.. math::
+
+    \tilde r = \begin{pmatrix} R^{-\top} J^\top r \\ c \end{pmatrix}, \qquad
+    c = \sqrt{\|r\|^2 - \|R^{-\top}J^\top r\|^2}, \qquad
+    \tilde J = \begin{pmatrix} R \\ 0 \end{pmatrix}
+
+(``R^{-⊤}`` a pseudo-inverse). Then :math:`\|\tilde r\|^2 = \|r\|^2`,
+:math:`\tilde J^\top\tilde J = J^\top J`, :math:`\tilde J^\top \tilde r = J^\top r` and
+:math:`\|\tilde J\delta + \tilde r\|^2 = \|J\delta + r\|^2` for every step ``δ``: the solver takes
+exactly the steps, trust-region ratios and damping it would take on the full residual. ``J̃`` is
+attached to ``r̃`` with a ``jax.custom_jvp``, so optimistix's ``jax.linearize`` sees a ``p × p``
+Jacobian and its QR/Cholesky work is on tiny matrices.
+
+:math:`J^\top J` and :math:`J^\top r` come from forward mode (one ``jvp`` per free scalar; each
+``jvp`` differentiates the residual with respect to one parameter only, so unrelated parts of the
+model carry no tangent), accumulated in float64 even when the model runs in float32. The
+Jacobian is never materialised as a whole, and no reverse-mode tape is stored.
+
+The one difference from running optimistix on the full residual: its Cauchy termination test
+compares successive residual vectors element by element; here it compares successive ``r̃``
+(``R^{-⊤}J^⊤r`` tends to zero at the optimum, ``c`` to the residual norm), together with the
+usual test on the step in ``u``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+
+#: Eigenvalues of ``JᵀJ`` below this fraction of the largest are treated as zero.
+RANK_RTOL = 1e-13
+
+
+def gram(residual: Callable, u):
+    """``(r, JᵀJ, Jᵀr)`` of ``residual(u)`` (a flat array) from one ``jvp`` per entry of ``u``.
+
+    ``residual(u)`` may compute in float32; the products are accumulated in float64 when x64 is
+    enabled (``preferred_element_type``).
+    """
+    r = residual(u)
+    eye = jnp.eye(u.shape[0], dtype=u.dtype)
+
+    def column(t):
+        return jax.jvp(residual, (u,), (t,))[1]
+
+    cols = jax.lax.map(column, eye) if u.shape[0] > 16 else jax.vmap(column)(eye)
+    acc = jnp.promote_types(u.dtype, jnp.float32)
+    jtj = jnp.dot(cols, cols.T, preferred_element_type=acc)
+    jtr = jnp.dot(cols, r, preferred_element_type=acc)
+    return r, jtj, jtr
+
+
+def compress(r, jtj, jtr):
+    """``(r̃, R)`` with ``RᵀR = JᵀJ``, ``Rᵀ r̃[:p] = Jᵀr`` and ``‖r̃‖ = ‖r‖`` (module docstring)."""
+    acc = jtj.dtype
+    lam, vec = jnp.linalg.eigh(jtj)
+    keep = lam > RANK_RTOL * jnp.max(jnp.abs(lam))
+    sq = jnp.sqrt(jnp.where(keep, lam, 1.0))
+    rmat = jnp.where(keep[:, None], sq[:, None] * vec.T, 0.0)  # R = Λ^½ Vᵀ
+    head = jnp.where(keep, (vec.T @ jtr) / sq, 0.0)  # R^{-ᵀ} Jᵀ r
+    total = jnp.sum(jnp.square(r.astype(acc)))
+    tail = jnp.sqrt(jnp.maximum(total - jnp.sum(head**2), 0.0))
+    return jnp.concatenate([head, tail[None]]), rmat
+
+
+def normal_form(residual: Callable) -> Callable:
+    """``fn(u, args) -> r̃`` for optimistix, whose derivative is the Gauss–Newton ``J̃``.
+
+    ``residual(u, args)`` returns the full flat residual. The returned function is only meant to
+    be differentiated once, to first order, by the solver (its ``jvp`` is ``J̃ δ``).
+    """
+
+    def _both(u, args):
+        return compress(*gram(lambda v: residual(v, args), u))
+
+    @jax.custom_jvp
+    def fn(u, args):
+        return _both(u, args)[0]
+
+    @fn.defjvp
+    def _fn_jvp(primals, tangents):
+        u, args = primals
+        du = tangents[0]
+        rt, rmat = _both(u, args)
+        dr = rmat @ du.astype(rmat.dtype)
+        return rt, jnp.concatenate([dr, jnp.zeros((1,), dr.dtype)]).astype(rt.dtype)
+
+    return fn

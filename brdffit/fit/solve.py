@@ -1,0 +1,196 @@
+"""``fit``: least-squares fitting of a registered model to a measured table, with optimistix.
+
+The pipeline: select cells (:mod:`.data`) → starting point (:mod:`.init`, or the user's) →
+unconstrained problem (:mod:`.transforms`, :mod:`.problem`) → optimistix solver on the
+Gauss–Newton normal form (:mod:`.normal_form`, :mod:`.solvers`) → covariance and metrics
+(:mod:`.statistics`) → :class:`~brdffit.fit.result.FitResult`.
+"""
+
+from __future__ import annotations
+
+import time
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from ..errors import FitError
+from ..models.registry import get_model
+from . import init as init_mod
+from .data import check_enough, select
+from .losses import DEFAULT_LOSS, get_loss
+from .normal_form import normal_form
+from .problem import Problem
+from .setup import assign, check_within, flat_bounds, flat_log
+from .solvers import DEFAULT_SOLVER, make_solver, solver_label
+from .transforms import bounds_in_s, to_unconstrained
+
+_PROGRESS = {"fn": None, "start": 0}
+
+
+def _emit(event: str, **info):
+    fn = _PROGRESS["fn"]
+    if fn is not None:
+        fn(event, info)
+
+
+def _step_callback(step, loss):
+    _emit("step", start=_PROGRESS["start"], step=int(step), cost=float(loss))
+
+
+def _verbose_hook(**kwargs):
+    """optimistix ``verbose`` callable: forwards (step, cost) to the progress callback."""
+    jax.debug.callback(_step_callback, kwargs["num_steps"][1], kwargs["loss_this_step"][1])
+
+
+@eqx.filter_jit
+def _solve(problem: Problem, solver, u0, data, max_steps: int):
+    fn = normal_form(problem.residual)
+    sol = optx.least_squares(fn, solver, u0, args=data, max_steps=max_steps, throw=False)
+    return sol.value, sol.result._value, sol.stats["num_steps"], 0.5 * jnp.sum(fn(sol.value, data) ** 2)
+
+
+def _default_dtype():
+    return "float64" if jax.config.jax_enable_x64 else "float32"
+
+
+def _tolerances(rtol, atol, dtype):
+    base = 1e-8 if dtype == "float64" else 1e-5
+    return (base if rtol is None else float(rtol)), (base if atol is None else float(atol))
+
+
+def _build_problem(model, loss, samples, fixed, init, bounds, dtype):
+    """Flat start/bounds/free set and the data-driven guess (before selecting cells)."""
+    lo, hi = flat_bounds(model, bounds)
+    x0 = model.flatten({})
+    fixed_idx = assign(model, fixed, x0, "fixed value of")
+    check_within(model, x0, lo, hi, fixed_idx, "fixed")
+    free = [i for i in range(len(x0)) if i not in set(fixed_idx)]
+    if not free:
+        raise FitError(f"every parameter of {model.name!r} is fixed: nothing to fit")
+    return x0, lo, hi, fixed_idx, free
+
+
+def _start_point(model, sel, x0, lo, hi, free, fixed_idx, init):
+    """Data-driven guess, then the user's ``init`` on top (fixed scalars keep their values)."""
+    d = sel.data
+    good = np.asarray(d.sqrt_weight)[:, 0] > 0
+    feats = init_mod.measure(np.asarray(d.rgb), np.asarray(d.wi), np.asarray(d.wo), good)
+    guess = model.flatten(init_mod.guess(model, feats))
+    x = x0.copy()
+    x[free] = guess[free]
+    if init is not None:
+        user = x.copy()
+        idx = assign(model, getattr(init, "params", init), user, "init value of")
+        check_within(model, user, lo, hi, idx, "init")
+        x[[i for i in idx if i not in set(fixed_idx)]] = user[[i for i in idx if i not in set(fixed_idx)]]
+    return x
+
+
+def _starts(u0: np.ndarray, multistart: int, seed: int) -> list[np.ndarray]:
+    """The default start, then ``multistart`` perturbed copies (unit normal steps in ``u``)."""
+    rng = np.random.default_rng(seed + 1)
+    return [u0] + [u0 + rng.normal(0.0, 1.0, size=u0.shape) for _ in range(int(multistart))]
+
+
+def _run_starts(problem, solver, starts, data, max_steps):
+    """Solve from every start; return (u, result code, steps, cost) of the best, and all costs."""
+    best, costs = None, []
+    for k, u0 in enumerate(starts):
+        _PROGRESS["start"] = k
+        _emit("start", start=k, of=len(starts))
+        u, code, steps, cost = _solve(problem, solver, jnp.asarray(u0), data, max_steps)
+        cost = float(cost)
+        ok = int(code) == 0 and np.all(np.isfinite(np.asarray(u))) and np.isfinite(cost)
+        costs.append(cost if np.isfinite(cost) else float("inf"))
+        _emit("start-done", start=k, cost=cost, steps=int(steps), success=bool(ok))
+        key = (not ok, cost if np.isfinite(cost) else np.inf)
+        if best is None or key < best[0]:
+            best = (key, np.asarray(u), int(code), int(steps), cost)
+    return best[1:], costs
+
+
+def fit(
+    table,
+    model,
+    *,
+    loss=DEFAULT_LOSS,
+    solver=DEFAULT_SOLVER,
+    init=None,
+    fixed=None,
+    bounds=None,
+    cutoff=None,
+    subsample=None,
+    seed: int = 0,
+    multistart: int = 0,
+    max_steps: int = 200,
+    rtol: float | None = None,
+    atol: float | None = None,
+    throw: bool = True,
+    progress=None,
+    precision: str | None = None,
+):
+    """Fit ``model`` to ``table`` by nonlinear least squares; returns a :class:`FitResult`.
+
+    Args:
+        table: anything with ``.to_samples()`` giving a ``data_formats.SampleSet`` (a
+            ``MERLTable``, a ``SampleSet``).
+        model: a registry name (``"ggx"``) or a :class:`~brdffit.models.Model`.
+        loss: a name from :data:`brdffit.fit.LOSSES` (``"log"`` default, ``"log+huber"``...) or a
+            :class:`~brdffit.fit.losses.Loss`.
+        solver: ``"lm"`` (default), ``"gauss-newton"``, ``"dogleg"``, or an optimistix
+            least-squares solver.
+        init: name → starting value (overrides the data-driven guess), or a previous
+            ``FitResult``.
+        fixed: name → value of scalars held fixed (``"f0"`` or one component ``"f0[1]"``).
+        bounds: name → ``(lo, hi)`` overriding the declared bounds.
+        cutoff: drop cells with ``θi`` or ``θo`` above this many degrees (Burley 2012 §4.7).
+        subsample: a cell count, a fraction, or a :class:`~brdffit.fit.data.Subsample`.
+        seed: for the subsample and the multi-start perturbations.
+        multistart: number of extra perturbed starts; the lowest cost wins.
+        max_steps, rtol, atol: solver limits (tolerances default to 1e-8 in float64, 1e-5 in
+            float32).
+        throw: raise :class:`~brdffit.errors.FitError` when the solver does not converge;
+            with ``False`` the result carries ``success=False`` and the solver's message.
+        progress: ``callback(event, info)`` with events ``setup``, ``start``, ``step``,
+            ``start-done``, ``done``.
+        precision: ``"float64"`` or ``"float32"`` model evaluation (products are accumulated in
+            float64 either way when x64 is enabled). Defaults to float64 when x64 is enabled.
+    """
+    t0 = time.perf_counter()
+    model, loss_obj = get_model(model), get_loss(loss)
+    dtype = precision or _default_dtype()
+    rtol, atol = _tolerances(rtol, atol, dtype)
+    opt = make_solver(solver, rtol, atol, verbose=_verbose_hook if progress else False)
+    samples = table.to_samples()
+    x0, lo, hi, fixed_idx, free = _build_problem(model, loss_obj, samples, fixed, init, bounds, dtype)
+    data_dtype = np.float64 if jax.config.jax_enable_x64 else np.float32
+    sel = select(samples, loss_obj, cutoff=cutoff, subsample=subsample, seed=seed, dtype=data_dtype)
+    check_enough(sel, len(free), samples.name)
+    x_start = _start_point(model, sel, x0, lo, hi, free, fixed_idx, init)
+    log = flat_log(model)
+    slo, shi = bounds_in_s(lo, hi, log)
+    problem = Problem(
+        model, loss_obj, tuple(free), tuple(bool(b) for b in log[free]), dtype,
+        jnp.asarray(x_start), jnp.asarray(slo[free]), jnp.asarray(shi[free]),
+    )
+    u0 = to_unconstrained(x_start[free], slo[free], shi[free], log[free])
+    _PROGRESS["fn"] = progress
+    try:
+        _emit("setup", n_cells=sel.n_used, n_free=len(free), model=model.name)
+        t1 = time.perf_counter()
+        (u, code, steps, cost), costs = _run_starts(
+            problem, opt, _starts(u0, multistart, seed), sel.data, int(max_steps)
+        )
+        t2 = time.perf_counter()
+    finally:
+        _PROGRESS["fn"] = None
+    from .finish import make_result
+
+    return make_result(
+        model=model, problem=problem, sel=sel, u=u, u0=u0, code=code, steps=steps, costs=costs,
+        x_start=x_start, fixed_idx=fixed_idx, loss=loss_obj, solver=solver_label(solver),
+        throw=throw, name=samples.name, times=(t0, t1, t2), emit=lambda **kw: progress and progress("done", kw),
+    )

@@ -1,0 +1,67 @@
+r"""Bijections between bounded physical parameters and the unconstrained space the solvers see.
+
+Levenberg–Marquardt, Gauss–Newton and Dogleg have no bounds of their own, so each free scalar
+``x ∈ [lo, hi]`` is fitted through an unconstrained ``u``:
+
+.. math::
+
+    s = \mathrm{lo}_s + (\mathrm{hi}_s - \mathrm{lo}_s)\,\sigma(\mathrm{clip}(u, -U, U)),
+    \qquad x = \begin{cases} e^{s} & \text{log parameter} \\ s & \text{otherwise}\end{cases}
+
+with ``σ`` the logistic function and ``lo_s, hi_s`` the bounds in ``s`` (``log`` of the bounds
+for a log parameter such as a roughness). Near a bound ``x - lo ∝ e^u``: the map behaves like a
+log transform there, so a diffuse albedo of 0.005 and one of 0.5 are equally easy to fit.
+
+Convention (departure from a plain logistic map): ``u`` is clipped at ``±U`` (``U = 30``). A
+parameter whose optimum lies at or beyond its bound runs to ``|u| = U``, where its derivative
+becomes exactly zero and the solver stops moving it, instead of chasing ``u → ∞`` until
+``max_steps``. Such parameters are reported in ``FitResult.at_bound``.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+#: Clip of the unconstrained coordinate (``σ(-30) ≈ 1e-13``).
+U_CLIP = 30.0
+#: A parameter is "at its bound" when ``σ(u)`` is within this of 0 or 1.
+AT_BOUND_TOL = 1e-6
+#: Starting values exactly at a bound are nudged this far inside (in ``σ`` units).
+START_NUDGE = 1e-6
+
+
+def bounds_in_s(lo, hi, log):
+    """Bounds in the pre-exponential coordinate ``s`` (``log`` bounds for log parameters)."""
+    lo, hi, log = (np.asarray(a) for a in (lo, hi, log))
+    return np.where(log, np.log(np.where(log, lo, 1.0)), lo), np.where(
+        log, np.log(np.where(log, hi, 1.0)), hi
+    )
+
+
+def to_physical(u, slo, shi, log):
+    """``x(u)``: unconstrained → physical (``jnp``; differentiable; ``log`` is a NumPy bool mask)."""
+    p = jax.nn.sigmoid(jnp.clip(u, -U_CLIP, U_CLIP))
+    s = slo + (shi - slo) * p
+    return jnp.where(log, jnp.exp(jnp.where(log, s, 0.0)), s)
+
+
+def to_unconstrained(x, slo, shi, log):
+    """``u(x)``: physical → unconstrained (NumPy). Values at a bound are nudged inside."""
+    x = np.asarray(x, float)
+    s = np.where(log, np.log(np.where(log, np.maximum(x, 1e-300), 1.0)), x)
+    p = np.clip((s - slo) / (shi - slo), START_NUDGE, 1.0 - START_NUDGE)
+    return np.log(p) - np.log1p(-p)
+
+
+def sigmoid_position(u):
+    """``σ(clip(u))`` in NumPy: 0 at the lower bound, 1 at the upper."""
+    u = np.clip(np.asarray(u, float), -U_CLIP, U_CLIP)
+    return 1.0 / (1.0 + np.exp(-u))
+
+
+def at_bound(u) -> np.ndarray:
+    """``-1`` (lower), ``+1`` (upper) or ``0`` (interior) for each unconstrained coordinate."""
+    p = sigmoid_position(u)
+    return np.where(p <= AT_BOUND_TOL, -1, np.where(p >= 1.0 - AT_BOUND_TOL, 1, 0))
