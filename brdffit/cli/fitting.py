@@ -7,14 +7,15 @@ runs (an existing file needs ``--force``), so no work is wasted and nothing part
 
 from __future__ import annotations
 
-import json
 import sys
+from pathlib import Path
 
 from ._common import (
     Progress,
     UsageError,
     atomic_write,
     check_outputs,
+    check_params,
     parse_assignments,
     read_input,
     write_text,
@@ -85,6 +86,8 @@ def options_from(args):
     model = get_model(options.model)
     if options.cutoff is not None and not 0 < options.cutoff <= 90:
         raise UsageError(f"--cutoff {options.cutoff:g}: give degrees in (0, 90]")
+    check_params(model, flags.init, "--init")
+    check_params(model, flags.fixed, "--fix")
     options.check_params(model)
     _check_names(options)
     return model, options
@@ -105,7 +108,7 @@ def _check_names(options) -> None:
 
 
 def run(args) -> int:
-    from .. import fit
+    from ..fit import fit
 
     model, options = options_from(args)
     out, plot, table = (args.out, args.plot, args.table)
@@ -113,7 +116,8 @@ def run(args) -> int:
     data = read_input(args.file)
     progress = Progress(quiet=args.quiet or args.json)
     progress(f"fitting {model.name} to {args.file}")
-    result = fit(data, model, **options.fit_kwargs(), throw=False, progress=progress)
+    result = fit(data, model, **options.fit_kwargs(), throw=False,
+                 progress=progress if progress.enabled else None)
     print(result.to_json() if args.json else result.summary())
     if out:
         write_text(out, result.to_json() + "\n")
@@ -140,8 +144,15 @@ def _plot_paths(plot):
 
 
 def _write_table(result, path, progress) -> None:
-    from data_formats.merl import write_merl
+    from .. import get_model
+    from .synth import synthesize_table
 
     progress(f"rendering the fitted model into {path}")
-    rendered = result.to_table()
-    atomic_write(path, lambda tmp: write_merl(tmp, rendered))
+    table = synthesize_table(get_model(result.model_name), result.params, name=Path(path).stem)
+    atomic_write(path, lambda tmp: _write_merl(tmp, table))
+
+
+def _write_merl(path, table) -> None:
+    from data_formats.merl import write_merl
+
+    write_merl(path, table)

@@ -69,11 +69,15 @@ def format_info(figures: dict) -> str:
 
 def figures_of(data) -> dict:
     if is_table(data):
-        return {"format": "MERL table", "path": str(data.path), **_jsonable(data.info())}
+        return {"format": "MERL table", **_jsonable(data.info())}
     return sample_info(data)
 
 
 def run(args) -> int:
-    figures = _jsonable(figures_of(read_input(args.file)))
-    print(json.dumps(figures, indent=2) if args.json else format_info(figures))
+    data = read_input(args.file)
+    figures = _jsonable(figures_of(data))
+    if args.json:
+        print(json.dumps(figures, indent=2))
+    else:
+        print(data.info_text() if is_table(data) else format_info(figures))
     return 0

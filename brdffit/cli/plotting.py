@@ -71,7 +71,9 @@ def run(args) -> int:
     data = read_input(args.file)
     model = params = None
     if result is not None:
-        model, params = result.model, result.params
+        from .. import get_model
+
+        model, params = get_model(result.model_name), result.params
     written = write_figures(data, args.output, model=model, params=params,
                             converged=result is None or result.success,
                             progress=Progress(args.quiet))

@@ -14,7 +14,8 @@ def add_parser(sub, parents) -> None:
         help="write a synthetic table from a model and known parameters",
         description="Evaluate a registered model with known parameters over the MERL grid and "
         "write it as a MERL table (.binary; cells below the horizon are missing, as in the real "
-        "database), or over N random direction pairs as a sample list (.csv/.npz, --samples).",
+        "database), or over N random direction pairs (dense near the specular peak) as a sample "
+        "list (.csv/.npz, --samples).",
     )
     p.add_argument("--model", "-m", required=True, help="a registered model (see `brdffit models`)")
     p.add_argument("--param", "-p", action="append", metavar="NAME=VALUE",
@@ -40,12 +41,23 @@ def _noisy(rgb, sigma, rng):
     return np.clip(rgb * (1.0 + sigma * rng.standard_normal(rgb.shape)), 0.0, None)
 
 
-def random_directions(rng, n):
-    """``n`` cosine-distributed directions on the upper hemisphere (θ < 89°)."""
-    u1, u2 = rng.uniform(size=n), rng.uniform(size=n)
-    r = np.sqrt(u1) * np.sin(np.radians(89.0))
-    phi = 2 * np.pi * u2
-    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - r**2)], axis=-1)
+def random_pairs(rng, n):
+    """``n`` direction pairs like a gonioreflectometer's: ``wi`` cosine-distributed, ``wo`` the
+    mirror of ``wi`` about a half vector tilted by θh = 90°·u² (dense near the specular peak, as
+    MERL's warped θh); pairs with ``wo`` within ~1° of the horizon are redrawn."""
+    wi, wo = np.empty((0, 3)), np.empty((0, 3))
+    while len(wi) < n:
+        m = 2 * (n - len(wi)) + 16
+        u1, u2 = rng.uniform(size=m), rng.uniform(size=m)
+        r, phi = np.sqrt(u1) * np.sin(np.radians(89.0)), 2 * np.pi * u2
+        a = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - r**2)], axis=-1)
+        th, ph = np.radians(90.0) * rng.uniform(size=m) ** 2, 2 * np.pi * rng.uniform(size=m)
+        h = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1)
+        b = 2 * np.sum(a * h, axis=-1, keepdims=True) * h - a
+        keep = (b[:, 2] > np.sin(np.radians(1.0))) & (np.sum(a * h, axis=-1) > 0)
+        wi, wo = np.concatenate([wi, a[keep]]), np.concatenate([wo, b[keep]])
+    wo = wo / np.linalg.norm(wo, axis=-1, keepdims=True)
+    return wi[:n], wo[:n]
 
 
 def synthesize_table(model, params, *, noise=0.0, seed=0, name=""):
@@ -67,7 +79,7 @@ def synthesize_samples(model, params, n, *, noise=0.0, seed=0, name=""):
     if n <= 0:
         raise UsageError(f"--samples {n}: give a positive number of direction pairs")
     rng = np.random.default_rng(seed)
-    wi, wo = random_directions(rng, n), random_directions(rng, n)
+    wi, wo = random_pairs(rng, n)
     rgb = _noisy(evaluate(model, params, wi, wo), noise, rng)
     return SampleSet(wi=wi, wo=wo, rgb=rgb, valid=np.ones(n, bool), name=name)
 
