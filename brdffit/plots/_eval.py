@@ -1,0 +1,137 @@
+"""Evaluating what a figure shows: the fitted model (JAX, chunked) and the measured data (NumPy).
+
+A figure receives either a measured MERL table (``data_formats.merl.MERLTable``: ``rgb``
+``(n_th, n_td, n_pd, 3)``, ``valid``) or a :class:`data_formats.SampleSet` of arbitrary direction
+pairs. Both are reduced here to the two things the figures need:
+
+* :func:`evaluate_model`: ``f_r`` of a fitted model at NumPy directions, compiled once per model
+  (parameters are arguments, not constants) and evaluated in fixed-size chunks, the last one
+  padded, so that memory stays bounded and every call with any batch size reuses one compilation.
+* :func:`measured_lookup`: ``f_r`` of the measurement at arbitrary direction pairs, with ``NaN``
+  where there is no data. A table is looked up with ``data_formats.merl.lookup_linear``
+  (trilinear in warped θh, θd, φd); a sample set by its nearest sample in the same warped
+  coordinates, within ``max_dist`` (so sparse goniometric data leaves honest holes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+#: Directions evaluated per compiled call; the last chunk is padded to this size.
+CHUNK = 32768
+
+_JIT_CACHE: dict[int, tuple[object, object]] = {}
+
+
+def is_table(data) -> bool:
+    """Whether ``data`` is a MERL-layout table (``rgb`` of shape ``(n_th, n_td, n_pd, 3)``)."""
+    rgb = getattr(data, "rgb", None)
+    return rgb is not None and np.ndim(rgb) == 4 and hasattr(data, "valid")
+
+
+def data_name(data, fallback: str = "measured") -> str:
+    """The material's name for titles: ``data.name``, else the file stem, else ``fallback``."""
+    name = getattr(data, "name", "") or ""
+    if not name and getattr(data, "path", None):
+        from pathlib import Path
+
+        name = Path(data.path).stem
+    return name or fallback
+
+
+def _jitted(model):
+    """``jax.jit`` of ``model.fn``, cached per model function (one compile per model and shape)."""
+    import jax
+
+    key = id(model.fn)
+    hit = _JIT_CACHE.get(key)
+    if hit is None or hit[0] is not model.fn:
+        hit = (model.fn, jax.jit(model.fn))
+        _JIT_CACHE[key] = hit
+    return hit[1]
+
+
+def evaluate_model(model, params: Mapping | None, wi, wo, *, chunk: int = CHUNK) -> np.ndarray:
+    """RGB ``f_r`` of ``model`` with ``params`` at directions ``wi, wo`` ``(..., 3)`` → ``(..., 3)``.
+
+    Missing parameters take the model's defaults. Evaluation runs in chunks of ``chunk``
+    directions; padding uses the pair ``(z, z)`` so it never produces NaN. The dtype follows JAX's
+    setting (float64 when the caller enabled ``jax_enable_x64``).
+    """
+    import jax.numpy as jnp
+
+    from ..models import get_model
+
+    model = get_model(model)
+    full = {k: jnp.asarray(np.asarray(v, dtype=float)) for k, v in model.complete(params).items()}
+    fn = _jitted(model)
+    wi, wo = np.asarray(wi, dtype=float), np.asarray(wo, dtype=float)
+    batch = np.broadcast_shapes(wi.shape, wo.shape)[:-1]
+    wi = np.broadcast_to(wi, batch + (3,)).reshape(-1, 3)
+    wo = np.broadcast_to(wo, batch + (3,)).reshape(-1, 3)
+    n = len(wi)
+    out = np.empty((n, 3))
+    pad = np.zeros((chunk, 3))
+    pad[:, 2] = 1.0
+    for start in range(0, n, chunk):
+        m = min(chunk, n - start)
+        a, b = pad.copy(), pad.copy()
+        a[:m], b[:m] = wi[start : start + m], wo[start : start + m]
+        out[start : start + m] = np.asarray(fn(full, jnp.asarray(a), jnp.asarray(b)))[:m]
+    return out.reshape(batch + (3,))
+
+
+def measured_lookup(data, *, max_dist: float = 0.03):
+    """A function ``(wi, wo) -> rgb`` ``(..., 3)`` giving the measured ``f_r``, NaN where unknown.
+
+    Tables: ``data_formats.merl.lookup_linear`` (its treatment of missing cells applies; a
+    non-finite result stays NaN). Sample sets: the nearest valid sample in the coordinates
+    ``(sqrt(θh/(π/2)), θd/(π/2), φd/π)`` (MERL's warp; φd folded to [0, π) and periodic), NaN when
+    it is farther than ``max_dist`` in those unit coordinates (0.03 ≈ 2.7° of θd).
+    """
+    if is_table(data):
+        from data_formats.merl import lookup_linear
+
+        def table_lookup(wi, wo):
+            wi, wo = np.broadcast_arrays(np.asarray(wi, float), np.asarray(wo, float))
+            out = np.asarray(lookup_linear(data, wi.reshape(-1, 3), wo.reshape(-1, 3)), float)
+            out = np.where(np.isfinite(out), out, np.nan)
+            return out.reshape(wi.shape[:-1] + (3,))
+
+        return table_lookup
+    return _nearest_sample_lookup(data, max_dist)
+
+
+def warped_coords(wi, wo) -> np.ndarray:
+    """``(..., 3)`` unit-cube coordinates ``(sqrt(θh/(π/2)), θd/(π/2), φd/π)``, φd folded."""
+    from data_formats.rusinkiewicz import half_diff_from_dirs
+
+    th, td, pd = half_diff_from_dirs(np.asarray(wi, float), np.asarray(wo, float))
+    pd = np.mod(pd, np.pi)
+    return np.stack(
+        [np.sqrt(np.clip(th, 0.0, None) / (np.pi / 2)), td / (np.pi / 2), pd / np.pi], axis=-1
+    )
+
+
+def _nearest_sample_lookup(samples, max_dist: float):
+    from scipy.spatial import cKDTree
+
+    ok = np.asarray(samples.valid, bool) & np.all(np.isfinite(samples.rgb), axis=-1)
+    if not ok.any():
+        return lambda wi, wo: np.full(np.broadcast_shapes(np.shape(wi), np.shape(wo)), np.nan)
+    pts = np.clip(warped_coords(samples.wi[ok], samples.wo[ok]), 0.0, [9.0, 9.0, np.nextafter(1, 0)])
+    tree = cKDTree(pts, boxsize=[10.0, 10.0, 1.0])  # periodic in φd only
+    rgb = np.asarray(samples.rgb, float)[ok]
+
+    def sample_lookup(wi, wo):
+        wi, wo = np.broadcast_arrays(np.asarray(wi, float), np.asarray(wo, float))
+        q = np.clip(warped_coords(wi, wo).reshape(-1, 3), 0.0, [9.0, 9.0, np.nextafter(1, 0)])
+        dist, idx = tree.query(q, distance_upper_bound=max_dist)
+        hit = np.isfinite(dist)
+        out = np.full((len(q), 3), np.nan)
+        out[hit] = rgb[idx[hit]]
+        return out.reshape(wi.shape[:-1] + (3,))
+
+    return sample_lookup

@@ -1,0 +1,116 @@
+r"""Directional albedo against incidence angle (Burley 2012 §4.4, Fig. 11), measured and fitted.
+
+The directional-hemispherical reflectance
+
+.. math::
+
+    \rho(\omega_i) = \int_{H^2} f_r(\omega_i, \omega_o)\,\cos\theta_o\,d\omega_o
+
+is integrated in **half-vector space**: ``wo = 2 (wi·h) h − wi`` with ``dωo = 4 (wi·h) dωh``
+(RTR eq. 9.33's half vector; the Jacobian of reflection), over ``h`` in the upper hemisphere, with
+the integrand masked to ``wo`` above the horizon and ``wi·h > 0``. Around the normal the specular
+peak sits at ``θh = 0`` for *every* incidence angle, so a grid dense near ``θh = 0`` resolves
+sharp lobes at all θi. The grid: ``θh = 90°·u²`` (MERL's warp), ``u`` by composite Gauss–Legendre
+(half the nodes on ``[0, 0.3]``, half on ``[0.3, 1]``), ``φh`` by the midpoint rule (spectrally
+accurate for a periodic integrand), weight ``sin θh · π u du dφh``. The integrand carries the
+factors ``cos θo`` and ``wi·h``, which vanish on the masked boundaries, so it is continuous there.
+
+Accuracy with the defaults (64 × 128 nodes per θi), measured by ``tests/test_plots.py``: a
+Lambertian table gives ρ to better than 1e-2 at every θi (< 1e-3 for the analytic model up to
+θi = 80°); GGX models (α = 0.05 … 0.5) agree with an independent dense integral over ``ωo`` to
+about 1e-3. For α below about 0.01 the lobe has fewer nodes; expect a few per cent.
+
+The azimuth of incidence is ``φi = 0`` (the x–z plane), which matters only for anisotropic models.
+Measured albedo uses :func:`._eval.measured_lookup` (trilinear lookup in a table, nearest sample
+in a sample set); a node without data contributes nothing, and an angle where the cosine-weighted
+solid angle with data (the *coverage*) is below ``min_coverage`` is reported as NaN.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _style
+from ._eval import data_name, evaluate_model, measured_lookup
+
+#: Default incidence angles (degrees).
+THETA_I_DEG = np.linspace(0.0, 89.0, 45)
+
+
+def half_vector_grid(n_u: int = 64, n_phi: int = 128, split: float = 0.3):
+    """Half vectors ``(n_u·n_phi, 3)`` and their solid-angle weights (see the module docstring)."""
+    x, w = np.polynomial.legendre.leggauss(n_u // 2)
+    u = np.concatenate([split * (x + 1) / 2, split + (1 - split) * (x + 1) / 2])
+    wu = np.concatenate([w * split / 2, w * (1 - split) / 2])
+    theta = 0.5 * np.pi * u**2
+    phi = (np.arange(n_phi) + 0.5) * (2 * np.pi / n_phi)
+    st = np.sin(theta)
+    h = np.stack(np.broadcast_arrays(
+        (st[:, None] * np.cos(phi)), (st[:, None] * np.sin(phi)), np.cos(theta)[:, None]), -1)
+    weight = (st * np.pi * u * wu)[:, None] * np.full(n_phi, 2 * np.pi / n_phi)
+    return h.reshape(-1, 3), weight.ravel()
+
+
+def _quadrature(theta_i_deg, n_u, n_phi):
+    """Per θi: ``wi``, ``wo`` ``(T, M, 3)`` and weights ``(T, M)`` including ``cosθo · 4 (wi·h)``."""
+    h, w = half_vector_grid(n_u, n_phi)
+    t = np.radians(np.asarray(theta_i_deg, float))
+    wi = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1)[:, None, :]
+    wi_h = np.sum(wi * h, axis=-1)
+    wo = 2 * wi_h[..., None] * h - wi
+    ok = (wi_h > 0) & (wo[..., 2] > 0)
+    weight = np.where(ok, w * wo[..., 2] * 4 * wi_h, 0.0)
+    wo = np.where(ok[..., None], wo, np.array([0.0, 0.0, 1.0]))
+    return np.broadcast_to(wi, wo.shape), wo, weight
+
+
+def directional_albedo(f, theta_i_deg=THETA_I_DEG, *, n_u: int = 64, n_phi: int = 128):
+    """``(albedo (T, 3), coverage (T,))`` of ``f(wi, wo) -> rgb`` at incidence ``theta_i_deg``.
+
+    ``f`` takes NumPy ``(N, 3)`` arrays and returns ``(N, 3)``; NaN marks "no data" and counts
+    as zero in the albedo and as missing in the coverage (the fraction of ``π``, the cosine-weighted
+    hemisphere, that had data).
+    """
+    wi, wo, weight = _quadrature(theta_i_deg, n_u, n_phi)
+    vals = np.asarray(f(wi.reshape(-1, 3), wo.reshape(-1, 3)), float).reshape(wo.shape)
+    have = np.all(np.isfinite(vals), axis=-1)
+    albedo = np.einsum("tm,tmc->tc", weight, np.where(have[..., None], vals, 0.0))
+    coverage = np.sum(weight * have, axis=-1) / np.sum(weight, axis=-1)
+    return albedo, coverage
+
+
+def model_albedo(model, params, theta_i_deg=THETA_I_DEG, **grid):
+    """Directional albedo ``(T, 3)`` of a model (see :func:`directional_albedo`)."""
+    return directional_albedo(lambda wi, wo: evaluate_model(model, params, wi, wo),
+                              theta_i_deg, **grid)[0]
+
+
+def measured_albedo(data, theta_i_deg=THETA_I_DEG, *, min_coverage: float = 0.9, **grid):
+    """Directional albedo ``(T, 3)`` of measured data; NaN where coverage < ``min_coverage``."""
+    albedo, coverage = directional_albedo(measured_lookup(data), theta_i_deg, **grid)
+    return np.where((coverage >= min_coverage)[:, None], albedo, np.nan)
+
+
+def plot_albedo(data, model=None, params=None, *, theta_i_deg=THETA_I_DEG, error: str | None = None,
+                title: str | None = None):
+    """The albedo figure: ρ(θi) per RGB channel, measured (markers) and fitted (lines)."""
+    theta_i_deg = np.asarray(theta_i_deg, float)
+    meas = measured_albedo(data, theta_i_deg)
+    fit = None if model is None else model_albedo(model, params, theta_i_deg)
+    fig = _style.new_figure(7.0, 4.6)
+    ax = fig.subplots()
+    for c, (color, ch) in enumerate(zip(_style.CHANNEL_COLORS, _style.CHANNEL_NAMES)):
+        ax.plot(theta_i_deg, meas[:, c], "o", ms=3.5, mfc="none", color=color,
+                label=f"{ch} measured")
+        if fit is not None:
+            ax.plot(theta_i_deg, fit[:, c], "-", lw=1.5, color=color, label=f"{ch} fitted")
+    ax.set_xlim(0, 90)
+    ax.set_xticks(range(0, 91, 15), [f"{t}°" for t in range(0, 91, 15)])
+    ax.set_ylim(bottom=0.0)
+    ax.set_xlabel("incidence angle θi")
+    ax.set_ylabel("directional albedo  ∫ f_r cos θo dωo")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, ncol=3 if fit is not None else 1, loc="best")
+    name = getattr(model, "name", model) if model is not None else None
+    fig.suptitle(title or _style.figure_title(data_name(data), name, error, "Directional albedo"))
+    return fig
