@@ -10,7 +10,7 @@ from functools import partial
 
 from ..diffuse import lambert
 from ..fresnel import schlick
-from ..ndf import GGX
+from ..ndf import GGX, GTR, Beckmann, BlinnPhong
 from .microfacet import microfacet_specular
 from .registry import Model, Param, register
 
@@ -81,5 +81,43 @@ TWO_LOBE_GGX_MODEL = register(
         ),
         fn=_two_lobe_ggx,
         reference="RTR eq. 9.34 twice; Ngan et al. 2005",
+    )
+)
+
+
+BECKMANN_MODEL = register(
+    Model(
+        name="beckmann",
+        description="Lambert + Beckmann specular, exact erf Smith Λ, height-correlated G2, Schlick F",
+        params=(DIFFUSE, F0, ALPHA),
+        fn=_single_lobe(lambda p: Beckmann(p["alpha"])),
+        reference="RTR eqs. 9.34, 9.35, 9.38, 9.31, 9.16, 9.61",
+    )
+)
+
+#: GTR's tail exponent: γ = 1 is Berry's (clearcoat) tail, 2 is GGX, large γ approaches
+#: Beckmann; Burley 2012 §5.4 found γ between 1 and 2 for MERL, the bounds leave room either side.
+GAMMA = Param("gamma", (), 0.3, 10.0, 2.0, "GTR tail exponent γ (2 = GGX, smaller = longer tail)", log=True)
+
+GTR_MODEL = register(
+    Model(
+        name="gtr",
+        description="Lambert + generalized Trowbridge-Reitz specular (free tail γ), numerical Smith Λ",
+        params=(DIFFUSE, F0, ALPHA, GAMMA),
+        fn=_single_lobe(lambda p: GTR(p["alpha"], p["gamma"])),
+        reference="Burley 2012 App. B eq. 1; RTR eqs. 9.34, 9.46, 9.47, 9.23/9.24, 9.31",
+    )
+)
+
+BLINN_PHONG_MODEL = register(
+    Model(
+        name="blinn-phong",
+        description=(
+            "Lambert + Blinn-Phong specular; alpha is the Beckmann-equivalent roughness, "
+            "exponent α_p = 2α⁻² − 2 (Walter 2007), Beckmann Smith Λ"
+        ),
+        params=(DIFFUSE, F0, ALPHA),
+        fn=_single_lobe(lambda p: BlinnPhong.from_beckmann_alpha(p["alpha"])),
+        reference="RTR eqs. 9.34, 9.40 (α_p = 2α_b⁻² − 2, p. 340), 9.38, 9.31, 9.16, 9.61",
     )
 )

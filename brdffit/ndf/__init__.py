@@ -1,6 +1,27 @@
 """Normal distribution functions: one module per family, each giving ``D`` and ``Lambda``."""
 
 from .base import ALPHA_MIN, NDF, clamp_alpha
+from .beckmann import Beckmann, beckmann_lambda_exact, beckmann_lambda_rational
+from .blinn_phong import BlinnPhong, beckmann_alpha_to_phong, phong_to_beckmann_alpha
 from .ggx import GGX
+from .gtr import GTR, gtr_log_normalization
+from .numerical import ProjectedAreaTable, isotropic, numerical_lambda, projected_area_normal
 
-__all__ = ["ALPHA_MIN", "NDF", "clamp_alpha", "GGX"]
+__all__ = [
+    "ALPHA_MIN",
+    "NDF",
+    "clamp_alpha",
+    "Beckmann",
+    "BlinnPhong",
+    "GGX",
+    "GTR",
+    "ProjectedAreaTable",
+    "beckmann_alpha_to_phong",
+    "beckmann_lambda_exact",
+    "beckmann_lambda_rational",
+    "gtr_log_normalization",
+    "isotropic",
+    "numerical_lambda",
+    "phong_to_beckmann_alpha",
+    "projected_area_normal",
+]
