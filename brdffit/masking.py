@@ -2,9 +2,18 @@
 
 All functions take an NDF object (see :mod:`brdffit.ndf`), directions ``wi``, ``wo`` and the
 microfacet normal ``wm``, batched over ``(..., 3)``, and return the batch shape ``(...)``.
+Every G2 form has the signature ``(ndf, wi, wo, wm)``; the correlated forms take the empirical
+``λ(φ)`` as a keyword, so a variant is ``functools.partial(G2_direction_correlated,
+lambda_fn=lambda_van_ginneken)``. Passing any of them as ``g2=`` to
+:func:`brdffit.models.microfacet_specular` changes the masking of a lobe.
+
+Ordering (for the same ``Λ``): separable ≤ height-correlated ≤ height-direction correlated ≤
+``min(G1(l), G1(v))``, and the direction-correlated form lies between separable and ``min``.
 """
 
 from __future__ import annotations
+
+import jax.numpy as jnp
 
 from ._math import chi_plus, dot
 
@@ -25,3 +34,68 @@ def G2_height_correlated(ndf, wi, wo, wm):  # noqa: N802
     """
     vis = chi_plus(dot(wo, wm)) * chi_plus(dot(wi, wm))
     return vis / (1.0 + ndf.Lambda(wo) + ndf.Lambda(wi))
+
+
+def G2_separable(ndf, wi, wo, wm):  # noqa: N802
+    r"""Separable (uncorrelated) Smith masking-shadowing, RTR eq. 9.27 (APS 2000 eq. 13).
+
+    .. math::  G_2(\mathbf l,\mathbf v,\mathbf m) = G_1(\mathbf v,\mathbf m)\,G_1(\mathbf l,\mathbf m)
+    """
+    return G1(ndf, wo, wm) * G1(ndf, wi, wm)
+
+
+def relative_azimuth(wi, wo):
+    r"""``φ ∈ [0, π]``, the angle between the projections of ``wi`` and ``wo`` on the surface.
+
+    ``atan2(|l_⊥ × v_⊥|, l_⊥·v_⊥)``, 0 when either direction is at the pole, where every
+    correlated G2 form is independent of ``λ(φ)`` anyway (``Λ(n) = 0`` makes both of its
+    branches equal the other ``G1``).
+    """
+    cross = wi[..., 0] * wo[..., 1] - wi[..., 1] * wo[..., 0]
+    along = wi[..., 0] * wo[..., 0] + wi[..., 1] * wo[..., 1]
+    ok = cross * cross + along * along > 1e-24
+    return jnp.where(ok, jnp.arctan2(jnp.where(ok, jnp.abs(cross), 0.0), jnp.where(ok, along, 1.0)), 0.0)
+
+
+def lambda_ashikhmin(phi):
+    r"""``λ(φ) = 1 − exp(−7.3 φ²)``, RTR eq. 9.29 (Ashikhmin et al. 2000's 15° Gaussian)."""
+    return -jnp.expm1(-7.3 * phi * phi)
+
+
+def lambda_van_ginneken(phi):
+    r"""``λ(φ) = 4.41 φ / (4.41 φ + 1)``, RTR eq. 9.30 (van Ginneken et al. 1998)."""
+    return 4.41 * phi / (4.41 * phi + 1.0)
+
+
+def G2_direction_correlated(ndf, wi, wo, wm, *, lambda_fn=lambda_ashikhmin):  # noqa: N802
+    r"""Direction-correlated Smith masking-shadowing, RTR eq. 9.28 (APS 2000 eq. 14).
+
+    .. math::
+
+        G_2 = \lambda(\phi)\,G_1(\mathbf v,\mathbf m)G_1(\mathbf l,\mathbf m)
+            + (1 - \lambda(\phi))\min(G_1(\mathbf v,\mathbf m), G_1(\mathbf l,\mathbf m))
+
+    ``φ`` from :func:`relative_azimuth`; ``lambda_fn`` is :func:`lambda_ashikhmin` (eq. 9.29,
+    the default) or :func:`lambda_van_ginneken` (eq. 9.30). APS's ``t(φ)`` is ``1 − λ(φ)``.
+    """
+    g_v, g_l = G1(ndf, wo, wm), G1(ndf, wi, wm)
+    lam = lambda_fn(relative_azimuth(wi, wo))
+    return lam * g_v * g_l + (1.0 - lam) * jnp.minimum(g_v, g_l)
+
+
+def G2_height_direction_correlated(ndf, wi, wo, wm, *, lambda_fn=lambda_ashikhmin):  # noqa: N802
+    r"""Height-direction correlated Smith masking-shadowing, RTR eq. 9.32 (Heitz 2014).
+
+    .. math::
+
+        G_2 = \frac{\chi^+(\mathbf m\cdot\mathbf v)\chi^+(\mathbf m\cdot\mathbf l)}
+            {1 + \max(\Lambda(\mathbf v), \Lambda(\mathbf l))
+               + \lambda(\mathbf v, \mathbf l)\min(\Lambda(\mathbf v), \Lambda(\mathbf l))}
+
+    with the empirical ``λ(v, l) = λ(φ)`` of eq. 9.29 (default) or 9.30 (``lambda_fn``), as RTR
+    suggests. ``λ = 1`` gives the height-correlated form 9.31, ``λ = 0`` gives ``min(G1, G1)``.
+    """
+    lam_v, lam_l = ndf.Lambda(wo), ndf.Lambda(wi)
+    lam = lambda_fn(relative_azimuth(wi, wo))
+    vis = chi_plus(dot(wo, wm)) * chi_plus(dot(wi, wm))
+    return vis / (1.0 + jnp.maximum(lam_v, lam_l) + lam * jnp.minimum(lam_v, lam_l))
