@@ -53,9 +53,7 @@ def diverging_cmap():
     """``RdBu_r`` (blue: fit too dark, red: too bright) with missing values in neutral grey."""
     import matplotlib
 
-    cmap = matplotlib.colormaps["RdBu_r"].copy()
-    cmap.set_bad((0.6, 0.6, 0.6))
-    return cmap
+    return matplotlib.colormaps["RdBu_r"].with_extremes(bad=(0.6, 0.6, 0.6))
 
 
 def warp_theta_h(theta_h_deg):
