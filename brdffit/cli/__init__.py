@@ -25,6 +25,7 @@ EXIT_OK, EXIT_NOT_CONVERGED, EXIT_USAGE = 0, 1, 2
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="brdffit",
+        allow_abbrev=False,
         description="Fit analytic BRDF models to measured reflectance (MERL tables, sample lists).",
         epilog="Run `brdffit demo` for a complete example; `brdffit COMMAND --help` for details.",
     )

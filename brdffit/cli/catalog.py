@@ -9,6 +9,7 @@ def add_parser(sub, parents) -> None:
     p = sub.add_parser(
         "models",
         parents=parents,
+        allow_abbrev=False,
         help="list the registered models, or one model's parameters",
         description="Without NAME: every registered model with a one-line description. With "
         "NAME: that model's parameters (shape, bounds, default, log-space fitting) and source.",

@@ -24,6 +24,7 @@ def add_parser(sub, parents) -> None:
     p = sub.add_parser(
         "demo",
         parents=parents,
+        allow_abbrev=False,
         help="synthesize a known material, fit it, compare, write figures (no download)",
         description="Synthesize a MERL table from known ggx parameters (1%% noise) in a "
         "temporary folder, fit it, print recovered against true values, and write the result "
@@ -62,10 +63,9 @@ def run(args) -> int:
         from ._common import UsageError
 
         raise UsageError(f"--outdir {outdir}: exists and is not a folder")
-    figures = outdir / "demo.png"
-    outdir.mkdir(parents=True, exist_ok=True)
-    result_path = outdir / "result.json"
-    check_outputs([result_path, *figure_paths(figures)], args.force)
+    figures, result_path = outdir / "demo.png", outdir / "result.json"
+    if outdir.is_dir():  # a new folder is created only once there is something to write
+        check_outputs([result_path, *figure_paths(figures)], args.force)
     progress = Progress(args.quiet)
     model = get_model(MODEL)
     with tempfile.TemporaryDirectory(prefix="brdffit-demo-") as tmp:
@@ -80,6 +80,7 @@ def run(args) -> int:
         print(result.summary())
         print(f"\nrecovered against true ({MODEL}, {NOISE:.0%} noise):")
         print(comparison(result, TRUTH))
+        outdir.mkdir(parents=True, exist_ok=True)
         write_text(result_path, result.to_json() + "\n")
         written = write_figures(table, figures, model=model, params=result.params,
                                 converged=result.success, progress=progress)

@@ -34,6 +34,7 @@ def add_parser(sub, parents) -> None:
     p = sub.add_parser(
         "fit",
         parents=parents,
+        allow_abbrev=False,
         help="fit a model to a MERL table or a sample list",
         description="Fit a registered model to FILE (.binary MERL table, .csv/.npz sample list) "
         "and print a summary: parameters with standard errors, error metrics, convergence, "

@@ -13,6 +13,7 @@ def add_parser(sub, parents) -> None:
     p = sub.add_parser(
         "info",
         parents=parents,
+        allow_abbrev=False,
         help="print a table's figures (dims, valid fraction, channel ranges, peak)",
         description="Print the figures of a MERL table (.binary) or a sample list (.csv, .npz): "
         "dimensions, valid fraction, per-channel min/median/max over valid samples, the peak.",

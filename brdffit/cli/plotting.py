@@ -16,6 +16,7 @@ def add_parser(sub, parents) -> None:
     p = sub.add_parser(
         "plot",
         parents=parents,
+        allow_abbrev=False,
         help="write the diagnostic figures of a table (and of a fit)",
         description="Write the diagnostic PNGs of FILE: the image slice at φd = 90° (measured | "
         "fitted | log ratio), specular-peak curves, directional albedo, lit spheres. With --fit, "

@@ -11,6 +11,7 @@ def add_parser(sub, parents) -> None:
     p = sub.add_parser(
         "synth",
         parents=parents,
+        allow_abbrev=False,
         help="write a synthetic table from a model and known parameters",
         description="Evaluate a registered model with known parameters over the MERL grid and "
         "write it as a MERL table (.binary; cells below the horizon are missing, as in the real "
