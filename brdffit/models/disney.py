@@ -32,7 +32,7 @@ from .._math import chi_plus, cos_theta, dot, half_vector, safe_div
 from ..diffuse import disney_diffuse
 from ..fresnel import schlick, schlick_weight
 from ..masking import G1
-from ..ndf import GGX
+from ..ndf import GGX, GTR
 from .microfacet import microfacet_specular
 from .registry import Model, Param, register
 
@@ -49,6 +49,12 @@ def _col(x):
     return jnp.asarray(x)[..., None]
 
 
+def _rgb(color):
+    """``color`` as an RGB array ``(..., 3)``; a scalar means grey."""
+    c = jnp.asarray(color)
+    return jnp.broadcast_to(c, (3,)) if c.ndim == 0 else c
+
+
 def tint_color(base_color):
     r"""``base_color`` divided by its luminance (hue and saturation only); white if it is black.
 
@@ -57,7 +63,8 @@ def tint_color(base_color):
     Burley's *specularTint* and *sheenTint* blend towards this color (BRDF Explorer
     ``disney.brdf``: ``Cdlum > 0 ? Cdlin/Cdlum : vec3(1)``; the notes do not give it).
     """
-    lum = jnp.sum(base_color * jnp.asarray(LUMINANCE), axis=-1)
+    w, base_color = LUMINANCE, _rgb(base_color)
+    lum = w[0] * base_color[..., 0] + w[1] * base_color[..., 1] + w[2] * base_color[..., 2]
     return safe_div(base_color, lum[..., None], fill=1.0)
 
 
@@ -139,16 +146,14 @@ def clearcoat_lobe(clearcoat, clearcoat_gloss, wi, wo):
     α = 0.25; overall scale ``[0, 0.25]`` (the ``.25 * clearcoat`` of the reference shader).
     Returns ``(..., 3)`` (three equal channels).
     """
-    from ..ndf import GTR  # noqa: PLC0415 (written in parallel; see the report)
-
     alpha = 0.1 + (0.001 - 0.1) * jnp.asarray(clearcoat_gloss)
     wm = half_vector(wi, wo)
     ci, co = cos_theta(wi), cos_theta(wo)
     vis = chi_plus(ci) * chi_plus(co)
     g = g2_separable(GGX(CLEARCOAT_G_ALPHA), wi, wo, wm)
     geom = safe_div(g * GTR(alpha, gamma=1.0).D(wm), 4.0 * ci * co) * vis
-    f = schlick(jnp.full((3,), CLEARCOAT_F0), dot(wi, wm))
-    return 0.25 * _col(clearcoat) * f * geom[..., None]
+    lobe = 0.25 * _col(clearcoat) * schlick(CLEARCOAT_F0, dot(wi, wm)) * geom[..., None]
+    return jnp.broadcast_to(lobe, lobe.shape[:-1] + (3,))
 
 
 def disney(p, wi, wo):
@@ -156,7 +161,7 @@ def disney(p, wi, wo):
 
     ``p`` maps each parameter name of the registered model to its value. Returns RGB ``(..., 3)``.
     """
-    base = p["base_color"]
+    base = _rgb(p["base_color"])
     dielectric = disney_diffuse(base, p["roughness"], p["subsurface"], wi, wo) + sheen_lobe(
         base, p["sheen"], p["sheen_tint"], wi, wo
     )
