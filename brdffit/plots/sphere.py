@@ -92,7 +92,7 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
     light = np.asarray(light_dir, float) / np.linalg.norm(light_dir)
     elev = np.degrees(np.arccos(np.clip(light[2], -1, 1)))
     fig.supxlabel(f"directional light {elev:.0f}° from the view axis, towards "
-                  f"({light[0]:+.2f}, {light[1]:+.2f}) in the image; exposure ×{exposure:.3g}, sRGB",
+                  f"({light[0]:+.2f}, {light[1]:+.2f}) in the image\nexposure ×{exposure:.3g}, sRGB",
                   fontsize=8)
     name = getattr(model, "name", model) if model is not None else None
     fig.suptitle(title or _style.figure_title(data_name(data), name, error, "Lit sphere"))
