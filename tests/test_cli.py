@@ -179,3 +179,37 @@ def test_sample_list_fit_not_converged_exits_1_and_still_writes(capsys, tmp_path
     result = json.loads((tmp_path / "r.json").read_text())
     assert result["success"] is False and result["loss"] == "cosine" and result["steps"] <= 1
     assert result["n_cells"] > 1300  # cutoff 85° from the flag, not 60° from the preset
+
+
+def test_progress_only_on_a_terminal():
+    import io
+
+    from brdffit.cli._common import Progress
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    piped, tty, quiet = io.StringIO(), Tty(), Tty()
+    for stream, p in ((piped, Progress(stream=piped)), (tty, Progress(stream=tty)),
+                      (quiet, Progress(quiet=True, stream=quiet))):
+        p("setup", {"n_cells": 10})
+        p("step", {"step": 1, "cost": 0.5})
+        p("done", {"success": True})
+    assert piped.getvalue() == "" and quiet.getvalue() == ""
+    lines = tty.getvalue().split("\n")
+    assert "setup n_cells=10" in lines[0] and "\rstep" not in lines[0]
+    assert lines[1].startswith("\r[") and "step step=1 cost=0.5" in lines[1]  # overwritten line
+    assert "done success=True" in lines[2]
+
+
+def test_info_of_a_sample_list(capsys, tmp_path):
+    (tmp_path / "s.csv").write_text(
+        "theta_i,phi_i,theta_o,phi_o,r,g,b\n10,0,10,180,5,4,3\n40,0,20,90,0.1,0.2,0.3\n"
+    )
+    assert main(["info", str(tmp_path / "s.csv"), "--json"]) == 0
+    figures = json.loads(capsys.readouterr().out)
+    assert figures["samples"] == 2 and figures["r_max"] == 5 and figures["peak_rgb"] == [5, 4, 3]
+    assert figures["peak_theta_i_deg"] == pytest.approx(10)
+    assert main(["info", str(tmp_path / "s.csv")]) == 0
+    assert "valid_fraction    1" in capsys.readouterr().out

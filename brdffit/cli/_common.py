@@ -133,20 +133,30 @@ def write_text(path, text: str) -> Path:
 
 # -- progress ---------------------------------------------------------------------------------
 class Progress:
-    """Progress lines on stderr, only when stderr is a terminal and ``--quiet`` is not given."""
+    """Progress lines on stderr, only when stderr is a terminal and ``--quiet`` is not given.
+
+    Solver iterations (``step`` events) overwrite one line; other events get a line each.
+    """
 
     def __init__(self, quiet: bool = False, stream=None, force: bool | None = None):
         self.stream = stream or sys.stderr
         tty = getattr(self.stream, "isatty", lambda: False)()
         self.enabled = (tty if force is None else force) and not quiet
         self.start = time.perf_counter()
+        self._inline = False
 
     def __call__(self, *event) -> None:
         """Print one event: a message, or whatever the fitter's ``progress`` callback passes."""
         if not self.enabled:
             return
-        text = " ".join(_describe(e) for e in event)
-        print(f"[{time.perf_counter() - self.start:6.1f}s] {text}", file=self.stream, flush=True)
+        text = f"[{time.perf_counter() - self.start:6.1f}s] " + " ".join(map(_describe, event))
+        if event and event[0] == "step":
+            self.stream.write("\r" + text + "\x1b[K")
+            self._inline = True
+        else:
+            self.stream.write(("\n" if self._inline else "") + text + "\n")
+            self._inline = False
+        self.stream.flush()
 
 
 def _describe(event) -> str:

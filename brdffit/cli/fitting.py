@@ -96,16 +96,13 @@ def options_from(args):
 
 def _check_names(options) -> None:
     """Loss and solver names resolved now, so a typo fails before the input is read."""
-    from ..fit import get_loss
+    from ..errors import UnknownNameError
+    from ..fit import SOLVERS, get_loss
 
     if options.loss is not None:
         get_loss(options.loss)
-    if options.solver is not None:
-        try:
-            from ..fit import get_solver
-        except ImportError:
-            return
-        get_solver(options.solver)
+    if options.solver is not None and options.solver not in SOLVERS:
+        raise UnknownNameError("solver", options.solver, SOLVERS)
 
 
 def run(args) -> int:
@@ -115,7 +112,7 @@ def run(args) -> int:
     out, plot, table = (args.out, args.plot, args.table)
     check_outputs([out, table] + _plot_paths(plot), args.force)
     data = read_input(args.file)
-    progress = Progress(quiet=args.quiet or args.json)
+    progress = Progress(quiet=args.quiet)
     progress(f"fitting {model.name} to {args.file}")
     result = fit(data, model, **options.fit_kwargs(), throw=False,
                  progress=progress if progress.enabled else None)
