@@ -109,6 +109,7 @@ def merl_index(theta_h, theta_d, phi_d, shape=MERL_SHAPE):
     ``phi_d = pi`` folds to cell 0 (its reciprocal twin), where the database clamps it to 179
     (see :func:`~data_formats.rusinkiewicz.fold_phi_d`). Arrays broadcast; returns ``intp``.
     """
+    theta_h, theta_d, phi_d = np.broadcast_arrays(theta_h, theta_d, phi_d)
     u, v, w = _grid_coords(theta_h, theta_d, phi_d, shape)
     return _clamped_floor(u, shape[0]), _clamped_floor(v, shape[1]), _clamped_floor(w, shape[2])
 
