@@ -31,7 +31,7 @@ import jax.numpy as jnp
 from .._math import chi_plus, cos_theta, dot, half_vector, safe_div
 from ..diffuse import disney_diffuse
 from ..fresnel import schlick, schlick_weight
-from ..masking import G1
+from ..masking import G2_separable
 from ..ndf import GGX, GTR
 from .microfacet import microfacet_specular
 from .registry import Model, Param, register
@@ -96,15 +96,6 @@ def specular_f0(base_color, metallic, specular, specular_tint):
     return dielectric + _col(metallic) * (base_color - dielectric)
 
 
-def g2_separable(ndf, wi, wo, wm):  # noqa: N802 (the book's symbol)
-    r"""Separable Smith masking-shadowing :math:`G_1(\mathbf v,\mathbf m)G_1(\mathbf l,\mathbf m)`, RTR eq. 9.27.
-
-    Burley's reference shader uses this uncorrelated product (``smithG_GGX_aniso`` twice), not
-    the height-correlated form that :func:`~brdffit.models.microfacet_specular` defaults to.
-    """
-    return G1(ndf, wi, wm) * G1(ndf, wo, wm)
-
-
 def specular_lobe(base_color, metallic, specular, specular_tint, roughness, anisotropic, wi, wo):
     r"""The primary specular lobe: anisotropic GGX (GTR γ = 2), RTR eq. 9.34.
 
@@ -112,11 +103,13 @@ def specular_lobe(base_color, metallic, specular, specular_tint, roughness, anis
     :func:`anisotropic_alphas`. ``F``: Schlick (§5.5) from :func:`specular_f0`. ``G``: the 2014
     addenda's revision: Smith G for anisotropic GGX (Heitz 2014) with the *unremapped* α_x, α_y
     (the 2012 remapping ``α_g = (0.5 + roughness/2)^2`` of §5.6 is removed), in the separable
-    form of the reference shader (:func:`g2_separable`). Returns ``(..., 3)``.
+    form the reference shader uses (``smithG_GGX_aniso`` twice: RTR eq. 9.27,
+    :func:`~brdffit.masking.G2_separable`), not the height-correlated default of
+    :func:`~brdffit.models.microfacet_specular`. Returns ``(..., 3)``.
     """
     ax, ay = anisotropic_alphas(roughness, anisotropic)
     f0 = specular_f0(base_color, metallic, specular, specular_tint)
-    return microfacet_specular(GGX(ax, ay), partial(schlick, f0), wi, wo, g2=g2_separable)
+    return microfacet_specular(GGX(ax, ay), partial(schlick, f0), wi, wo, g2=G2_separable)
 
 
 def sheen_lobe(base_color, sheen, sheen_tint, wi, wo):
@@ -150,7 +143,7 @@ def clearcoat_lobe(clearcoat, clearcoat_gloss, wi, wo):
     wm = half_vector(wi, wo)
     ci, co = cos_theta(wi), cos_theta(wo)
     vis = chi_plus(ci) * chi_plus(co)
-    g = g2_separable(GGX(CLEARCOAT_G_ALPHA), wi, wo, wm)
+    g = G2_separable(GGX(CLEARCOAT_G_ALPHA), wi, wo, wm)
     geom = safe_div(g * GTR(alpha, gamma=1.0).D(wm), 4.0 * ci * co) * vis
     lobe = 0.25 * _col(clearcoat) * schlick(CLEARCOAT_F0, dot(wi, wm)) * geom[..., None]
     return jnp.broadcast_to(lobe, lobe.shape[:-1] + (3,))
