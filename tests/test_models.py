@@ -33,7 +33,8 @@ WHITE = {
     # the bound is checked up to 60° incidence only (see ENERGY_MAX_THETA).
     "two-lobe-ggx": dict(diffuse=0.0, f0_1=0.5, alpha_1=0.1, f0_2=0.5, alpha_2=0.4),
     "disney": dict(
-        base_color=1.0, metallic=1.0, roughness=0.5, sheen=0.0, clearcoat=0.0, subsurface=0.0
+        base_color=1.0, metallic=1.0, roughness=0.5, sheen=0.0, clearcoat=0.0, subsurface=0.0,
+        anisotropic=0.8,
     ),
 }
 
