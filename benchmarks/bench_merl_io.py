@@ -5,10 +5,12 @@ Run by hand from the repository root::
     .venv/bin/python benchmarks/bench_merl_io.py [--repeat 5] [--pairs 1000000]
 
 Writes a full-size synthetic table (90 x 90 x 180, 34,992,012 bytes) to a temporary folder,
-then reports the best of ``--repeat`` timings for ``read_merl`` (default and ``mmap=True``),
-``lookup_nearest`` and ``lookup_linear``, each beside its goal (issue 2: read <= 0.15 s, each
-lookup <= 0.3 s) and the ratio time/goal (below 1 meets the goal). The file is read once before
-timing, so the read figures are from the page cache, not the disk.
+then reports, for ``read_merl`` (default and ``mmap=True``), ``lookup_nearest`` and
+``lookup_linear``, the best of ``--repeat`` wall times and CPU times, each beside its goal
+(issue 2: read <= 0.15 s, each lookup <= 0.3 s) and the ratio wall/goal (at most 1 meets the
+goal; the exit code is 1 when a figure misses). The file is read once before timing, so the
+read figures are from the page cache, not the disk. On a shared machine compare the CPU column
+too: it leaves out the time spent waiting for a core.
 """
 
 from __future__ import annotations
@@ -50,14 +52,19 @@ def _upper_hemisphere(rng, n):
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
 
 
-def best_of(fn, repeat: int) -> float:
-    """Smallest wall time of ``repeat`` calls of ``fn()``, in seconds."""
-    times = []
+def best_of(fn, repeat: int) -> tuple[float, float]:
+    """Smallest wall time and smallest CPU time of ``repeat`` calls of ``fn()``, in seconds.
+
+    The CPU time (``time.process_time``) counts only this process: on a machine shared with
+    other work it shows what the wall time would be without the competition for the cores.
+    """
+    wall, cpu = [], []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return min(wall), min(cpu)
 
 
 def main(argv=None) -> int:
@@ -80,13 +87,16 @@ def main(argv=None) -> int:
             "lookup nearest": best_of(lambda: lookup_nearest(table, wi, wo), args.repeat),
             "lookup linear": best_of(lambda: lookup_linear(table, wi, wo), args.repeat),
         }
-    print(f"file: {size:,} bytes; lookups of {args.pairs:,} random pairs; best of {args.repeat}")
-    print(f"{'figure':<16}{'time (s)':>10}{'goal (s)':>10}{'ratio':>8}  verdict")
-    for key, t in figures.items():
-        ratio = t / GOALS[key]
-        print(f"{key:<16}{t:>10.4f}{GOALS[key]:>10.2f}{ratio:>8.2f}  "
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"file: {size:,} bytes; lookups of {args.pairs:,} random pairs; best of {args.repeat}; "
+          f"{os.cpu_count()} cores, load average {load:.2f} before the timings")
+    print(f"{'figure':<16}{'wall (s)':>10}{'cpu (s)':>10}{'goal (s)':>10}{'ratio':>8}  "
+          "verdict (wall)")
+    for key, (wall, cpu) in figures.items():
+        ratio = wall / GOALS[key]
+        print(f"{key:<16}{wall:>10.4f}{cpu:>10.4f}{GOALS[key]:>10.2f}{ratio:>8.2f}  "
               f"{'meets goal' if ratio <= 1 else 'MISSES goal'}")
-    return 0 if all(figures[k] <= GOALS[k] for k in figures) else 1
+    return 0 if all(figures[k][0] <= GOALS[k] for k in figures) else 1
 
 
 if __name__ == "__main__":

@@ -43,7 +43,7 @@ MERL_SHAPE = (N_TH, N_TD, N_PD)
 SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
 #: Largest header dimension the reader accepts (the database uses at most 180).
 MAX_DIM = 10_000
-#: A direction counts as above the horizon when ``cos(theta) > HORIZON_EPS`` (see ``above_horizon``).
+#: A direction is above the horizon when ``cos(theta) > HORIZON_EPS`` (see ``above_horizon``).
 HORIZON_EPS = 1e-9
 _HEADER_BYTES = 12
 _CHANNELS = "RGB"
@@ -80,7 +80,7 @@ def _v_theta_d(theta_d, n_td: int):
 
 
 def _w_phi_d(phi_d_folded, n_pd: int):
-    """Linear ``phi_d`` coordinate of a folded ``phi_d``, ``BRDFRead.cpp``'s ``phi_diff / M_PI * 180``."""
+    """Linear coordinate of a folded ``phi_d``, ``BRDFRead.cpp``'s ``phi_diff / M_PI * 180``."""
     return phi_d_folded / np.pi * n_pd
 
 
@@ -140,7 +140,8 @@ def _smallest_in_cell(coord, naive):
 def _corner_axes(shape):
     """Float lower corners along each axis: ``(theta_h[n_th], theta_d[n_td], phi_d[n_pd])``."""
     n_th, n_td, n_pd = shape
-    th = _smallest_in_cell(lambda x: _u_theta_h(x, n_th), (np.arange(n_th) / n_th) ** 2 * (np.pi / 2))
+    th = _smallest_in_cell(lambda x: _u_theta_h(x, n_th),
+                           (np.arange(n_th) / n_th) ** 2 * (np.pi / 2))
     td = _smallest_in_cell(lambda x: _v_theta_d(x, n_td), np.arange(n_td) / n_td * (np.pi / 2))
     pd = _smallest_in_cell(lambda x: _w_phi_d(x, n_pd), np.arange(n_pd) / n_pd * np.pi)
     for a in (th, td, pd):
@@ -152,23 +153,32 @@ def cell_angles(i, j, k, shape=MERL_SHAPE):
     """Lower-corner angles ``(theta_h, theta_d, phi_d)`` of cells ``(i, j, k)`` (radians).
 
     The corner is ``((i/n_th)^2 * 90 deg, j * 90/n_td deg, k * 180/n_pd deg)``, taken as the
-    smallest double that :func:`merl_index` puts in the cell (at most a few ulps above the closed
+    smallest double that :func:`merl_index` puts in the cell (within a few ulps of the closed
     form, which itself can round into the cell below), so ``merl_index(*cell_angles(i, j, k))``
     is ``(i, j, k)`` for every cell. Indices broadcast.
     """
-    th, td, pd = _corner_axes(tuple(int(n) for n in shape))
+    th, td, pd = _corner_axes(_shape_key(shape))
     return th[np.asarray(i)], td[np.asarray(j)], pd[np.asarray(k)]
 
 
-@functools.lru_cache(maxsize=2)
+def _shape_key(shape) -> tuple[int, int, int]:
+    """A grid shape as a hashable ``(n_th, n_td, n_pd)`` of ints (one cache entry per grid)."""
+    n_th, n_td, n_pd = (int(n) for n in shape)
+    return n_th, n_td, n_pd
+
+
 def cell_directions(shape=MERL_SHAPE):
     """Direction pairs ``(wi, wo)`` of every cell's lower corner, each ``(n_th, n_td, n_pd, 3)``.
 
-    ``phi_h = 0`` (the half vector lies in the ``xz`` plane). Cached per shape and returned
-    read-only (2 x 35 MB for the database grid): copy before modifying. Cells with ``theta_d = 0``
-    have ``wi = wo`` for every ``k`` (``phi_d`` is undefined there).
+    ``phi_h = 0`` (the half vector lies in the ``xz`` plane). Cached per shape (the two most
+    recent) and returned read-only (2 x 35 MB for the database grid): copy before modifying.
+    Cells with ``theta_d = 0`` have ``wi = wo`` for every ``k`` (``phi_d`` is undefined there).
     """
-    shape = tuple(int(n) for n in shape)
+    return _cell_directions(_shape_key(shape))
+
+
+@functools.lru_cache(maxsize=2)
+def _cell_directions(shape):
     th, td, pd = _corner_axes(shape)
     wi, wo = dirs_from_half_diff(th[:, None, None], td[None, :, None], pd[None, None, :])
     wi.flags.writeable = False
@@ -176,7 +186,6 @@ def cell_directions(shape=MERL_SHAPE):
     return wi, wo
 
 
-@functools.lru_cache(maxsize=2)
 def above_horizon(shape=MERL_SHAPE):
     """``(n_th, n_td, n_pd)`` bool: both corner directions strictly above the horizon.
 
@@ -184,7 +193,12 @@ def above_horizon(shape=MERL_SHAPE):
     horizon mathematically (e.g. ``theta_h + theta_d = 90 deg`` at ``phi_d = 0``) compute to
     ``cos ~ +-1e-17`` and are excluded rather than left to rounding. Read-only, cached.
     """
-    wi, wo = cell_directions(shape)
+    return _above_horizon(_shape_key(shape))
+
+
+@functools.lru_cache(maxsize=2)
+def _above_horizon(shape):
+    wi, wo = _cell_directions(shape)
     mask = (wi[..., 2] > HORIZON_EPS) & (wo[..., 2] > HORIZON_EPS)
     mask.flags.writeable = False
     return mask

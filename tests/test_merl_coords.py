@@ -156,7 +156,8 @@ def test_dirs_from_half_diff_inverts_half_diff_from_dirs():
     th, td = rng.uniform(0.01, 1.55, n), rng.uniform(0.01, 1.55, n)
     pd, ph = rng.uniform(-3.1, 3.1, n), rng.uniform(-3.1, 3.1, n)
     wi, wo = dirs_from_half_diff(th, td, pd, ph)
-    assert np.allclose(np.linalg.norm(wi, axis=-1), 1) and np.allclose(np.linalg.norm(wo, axis=-1), 1)
+    assert np.allclose(np.linalg.norm(wi, axis=-1), 1)
+    assert np.allclose(np.linalg.norm(wo, axis=-1), 1)
     h = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1)
     assert np.allclose((wi + wo) / np.linalg.norm(wi + wo, axis=-1, keepdims=True), h, atol=1e-12)
     # wo is the mirror of wi about h (RTR eq. 9.33 reversed)
@@ -217,3 +218,8 @@ def test_above_horizon_matches_the_closed_form_and_the_reference_fraction():
     assert np.array_equal(mask, (zi > HORIZON_EPS) & (zo > HORIZON_EPS))
     assert 0.75 < mask.mean() < 0.77  # "about 76%" (merl-format.md)
     assert not mask[30, 80, 0] and not mask[60, 50, 0]  # theta_h + theta_d = 90 deg exactly
+
+
+def test_grid_caches_accept_any_spelling_of_the_shape():
+    assert cell_directions([90, 90, 180])[0] is cell_directions()[0]
+    assert above_horizon(np.array(MERL_SHAPE)) is above_horizon()

@@ -441,7 +441,8 @@ def test_lookup_method_dispatch(shiny):
     with pytest.raises(ValueError, match=r"unknown method 'cubic'; expected one of "
                                          r"\['linear', 'nearest'\]"):
         shiny.lookup(wi, wo, method="cubic")
-    with pytest.raises(ValueError, match=r"expected directions of shape \(\.\.\., 3\), got \(100, 2\)"):
+    with pytest.raises(ValueError,
+                       match=r"expected directions of shape \(\.\.\., 3\), got \(100, 2\)"):
         lookup_nearest(shiny, wi[:, :2], wo[:, :2])
 
 
