@@ -1,0 +1,66 @@
+"""From a :class:`~brdffit.fit.FitResult` back to the fit's loss and problem.
+
+A ``FitResult`` records the loss as a label (``"log"``, ``"log+huber(0.1)"``), the free and
+fixed scalars by flat name and the optimum ``x``; it does not record ``bounds``, ``cutoff`` or
+``subsample``, so those are passed again by the caller (the CLI passes the same options).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import ConfigError
+from ..fit.losses import get_loss
+from ..fit.problem import Problem
+from ..fit.setup import flat_bounds, flat_log
+from ..fit.transforms import bounds_in_s
+
+_HUBER = re.compile(r"^(?P<base>[a-z]+)\+huber\((?P<delta>[^)]+)\)$")
+
+
+def loss_of(result, loss=None):
+    """The :class:`~brdffit.fit.losses.Loss` of ``result`` (or ``loss`` when given)."""
+    if loss is not None:
+        return get_loss(loss)
+    m = _HUBER.match(result.loss)
+    if m:
+        return get_loss(m.group("base"), huber=float(m.group("delta")))
+    return get_loss(result.loss)
+
+
+def problem_from(result, model, loss, bounds=None, chunks: int = 1):
+    """``(problem, lo, hi)``: the fit's :class:`Problem` at its optimum and the flat bounds.
+
+    ``chunks`` is the selection's block count (only the fit's Jacobian uses it). Raises
+    :class:`ConfigError` when ``result`` was fitted with another model.
+    """
+    if result.model_name != model.name or list(result.names) != model.flat_names():
+        raise ConfigError(
+            f"the fit result is for model {result.model_name!r} but the posterior was asked for "
+            f"{model.name!r}; pass the matching model (or the result alone)"
+        )
+    lo, hi = flat_bounds(model, bounds)
+    names = model.flat_names()
+    free = tuple(names.index(n) for n in result.free)
+    log = flat_log(model)
+    slo, shi = bounds_in_s(lo, hi, log)
+    dtype = "float64" if jax.config.jax_enable_x64 else "float32"
+    x = np.asarray(result.x, float)
+    outside = [names[i] for i in free if not lo[i] <= x[i] <= hi[i]]
+    if outside:
+        raise ConfigError(
+            f"the least-squares optimum has {outside} outside the bounds given here; pass the "
+            f"same `bounds` as the fit"
+        )
+    fields = dict(
+        model=model, loss=loss, free=free, log=tuple(bool(b) for b in log[list(free)]),
+        compute_dtype=dtype, chunks=chunks, x_fixed=jnp.asarray(x),
+        slo=jnp.asarray(slo[list(free)]), shi=jnp.asarray(shi[list(free)]),
+    )
+    known = {f.name for f in dataclasses.fields(Problem)}  # the fit engine's fields evolve
+    return Problem(**{k: v for k, v in fields.items() if k in known}), lo, hi

@@ -1,0 +1,141 @@
+"""The result of :func:`~brdffit.posterior.sample_posterior`: percentiles, diagnostics, chain.
+
+Vocabulary follows :class:`~brdffit.fit.FitResult`: ``names`` are the model's flat scalar names
+(``f0[0]`` ...), ``free``/``fixed`` say which were sampled; ``params`` holds the posterior
+medians grouped by parameter (a list for RGB), fixed scalars keeping their fixed value.
+``percentiles`` maps every sampled flat name (and ``sigma`` when the noise scale is sampled) to
+its 16/50/84 percentiles. The chain itself goes to an NPZ file (:meth:`save_chain`), not to JSON.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .diagnostics import Diagnostics
+
+#: The percentiles reported for every sampled scalar (median and a 68% interval).
+PERCENTILES = (16.0, 50.0, 84.0)
+
+
+@dataclasses.dataclass
+class PosteriorResult:
+    """Outcome of :func:`~brdffit.posterior.sample_posterior`.
+
+    Attributes:
+        model_name, table: what was sampled, on what.
+        names: flat names of all scalars; free: those sampled; fixed: those held fixed.
+        sampled: column names of ``samples``/``chain`` (``free`` plus ``"sigma"`` if sampled).
+        params: posterior medians by parameter (fixed scalars at their value).
+        percentiles: sampled name → ``[p16, p50, p84]``. std: sampled name → posterior std.
+        x_ls: the least-squares optimum (flat, all scalars); stderr_ls: free name → its
+            least-squares standard error (NaN at a bound).
+        samples: ``(n, d)`` post-burn, thinned draws. chain: ``(nsteps, nwalkers, d)`` all
+            steps, unthinned. log_prob: ``(nsteps, nwalkers)``.
+        noise: ``{"mode": "fixed"|"sampled"|"given", "sigma": value (median if sampled)}``.
+        prior: sampled name → a label of its prior. diagnostics: :class:`Diagnostics`.
+        settings: nwalkers, nsteps, burn, thin, seed, loss, cutoff, subsample, n_cells.
+        wall_time: seconds for the whole call; timings: ``fit``, ``compile``, ``sample``.
+    """
+
+    model_name: str
+    table: str
+    names: list
+    free: list
+    fixed: list
+    sampled: list
+    params: dict
+    percentiles: dict
+    std: dict
+    x_ls: np.ndarray
+    stderr_ls: dict
+    samples: np.ndarray
+    chain: np.ndarray
+    log_prob: np.ndarray
+    noise: dict
+    prior: dict
+    diagnostics: Diagnostics
+    settings: dict
+    wall_time: float
+    timings: dict
+
+    def interval(self, name: str, level: float = 0.95) -> tuple[float, float]:
+        """The central credible interval of ``name`` holding ``level`` of the posterior mass."""
+        if name not in self.sampled:
+            raise KeyError(f"{name!r} was not sampled; sampled scalars: {', '.join(self.sampled)}")
+        tail = 50.0 * (1.0 - float(level))
+        col = self.samples[:, self.sampled.index(name)]
+        lo, hi = np.percentile(col, [tail, 100.0 - tail])
+        return float(lo), float(hi)
+
+    def summary(self) -> str:
+        """Readable lines: the run, each scalar's 16/50/84 percentiles beside the LS fit."""
+        s, d = self.settings, self.diagnostics
+        lines = [
+            f"{self.model_name} posterior of {self.table or 'table'} ({s['loss']} loss, noise "
+            f"{self.noise['mode']} σ={self.noise['sigma']:.4g}): {s['nwalkers']} walkers x "
+            f"{s['nsteps']} steps (burn {s['burn']}, thin {s['thin']}), {s['n_cells']} cells, "
+            f"{self.wall_time:.1f} s",
+            f"  {'':>10}   {'p16':>10} {'p50':>10} {'p84':>10}   {'least squares':>22}  "
+            f"{'tau':>6} {'ess':>7}",
+        ]
+        x_ls = dict(zip(self.names, np.asarray(self.x_ls, float)))
+        for n in self.sampled:
+            p = self.percentiles[n]
+            ls = f"{x_ls[n]:.5g} ± {self.stderr_ls.get(n, float('nan')):.3g}" if n in x_ls else ""
+            lines.append(
+                f"  {n:>10} = {p[0]:10.5g} {p[1]:10.5g} {p[2]:10.5g}   {ls:>22}  "
+                f"{d.tau[n]:6.1f} {d.ess[n]:7.0f}"
+            )
+        lines += [f"  {n:>10} = {x_ls[n]:.5g} (fixed)" for n in self.fixed]
+        lines.append(f"  acceptance {d.acceptance:.3f} (walkers {d.acceptance_min:.2f}–"
+                     f"{d.acceptance_max:.2f}); {'TOO SHORT' if d.too_short else 'chain ≥ 50 τ'}")
+        lines += [f"  warning: {m}" for m in d.messages]
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def to_dict(self) -> dict:
+        """Everything but the chain arrays (see :meth:`save_chain`), as plain Python values."""
+        return {
+            "model_name": self.model_name, "table": self.table, "names": list(self.names),
+            "free": list(self.free), "fixed": list(self.fixed), "sampled": list(self.sampled),
+            "params": self.params, "percentiles": self.percentiles, "std": self.std,
+            "percentile_levels": list(PERCENTILES),
+            "x_ls": [float(v) for v in np.asarray(self.x_ls, float)],
+            "stderr_ls": self.stderr_ls, "noise": self.noise, "prior": self.prior,
+            "diagnostics": self.diagnostics.to_dict(), "settings": self.settings,
+            "wall_time": self.wall_time, "timings": self.timings,
+        }
+
+    def to_json(self, path=None, indent: int = 2) -> str:
+        """Strict JSON (NaN as ``null``); also written to ``path`` if given."""
+        from ..fit.result import _json_safe
+
+        text = json.dumps(_json_safe(self.to_dict()), indent=indent)
+        if path is not None:
+            Path(path).write_text(text)
+        return text
+
+    def save_chain(self, path) -> Path:
+        """The chain as NPZ: ``chain``, ``log_prob``, ``samples``, ``names`` (``sampled``),
+        ``burn``, ``thin``. ``np.load(path)`` reads it back."""
+        path = Path(path)
+        with open(path, "wb") as f:  # a file object: numpy would append ".npz" to a bare name
+            np.savez_compressed(
+                f, chain=self.chain, log_prob=self.log_prob, samples=self.samples,
+                names=np.asarray(self.sampled), burn=self.settings["burn"],
+                thin=self.settings["thin"],
+            )
+        return path
+
+    def corner_plot(self, path, truths=None):
+        """A corner plot of the samples (the ``corner`` package) written to ``path``; see
+        :func:`~brdffit.posterior.plot.corner_plot`."""
+        from .plot import corner_plot
+
+        return corner_plot(self, path, truths=truths)
