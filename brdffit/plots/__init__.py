@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ._eval import evaluate_model, measured_lookup
 from ._style import save_png
 from .albedo import directional_albedo, measured_albedo, model_albedo, plot_albedo
 from .error import format_error, rms_log_error
@@ -80,9 +81,11 @@ __all__ = [
     "FIGURES",
     "diagnostics",
     "directional_albedo",
+    "evaluate_model",
     "figure_paths",
     "format_error",
     "measured_albedo",
+    "measured_lookup",
     "model_albedo",
     "plot_albedo",
     "plot_peaks",

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.lines import Line2D
+from matplotlib.ticker import NullFormatter
 
 from . import _style
 from ._eval import data_name, evaluate_model, is_table, warped_coords
@@ -65,6 +66,7 @@ def _draw_panel(ax, meas, fit, theta_d_deg):
             pos = rgb_f[:, c] > 0
             ax.plot(_style.warp_theta_h(th_f[pos]), rgb_f[pos, c], "-", lw=1.3, color=color)
     ax.set_yscale("log")
+    ax.yaxis.set_minor_formatter(NullFormatter())  # crowded, and slow to lay out
     ax.set_xlim(0.0, 1.0)
     _style.set_warped_theta_h_axis(ax)
     ax.set_ylabel("f_r  [1/sr]")
