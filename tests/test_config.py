@@ -1,5 +1,6 @@
 """TOML presets: every shipped preset loads and validates; layers merge; mistakes are named."""
 
+import re
 import tomllib
 from pathlib import Path
 
@@ -21,9 +22,11 @@ def test_every_registered_model_has_a_preset(name):
     assert opts.model == name
     model = brdffit.get_model(name)
     opts.check_params(model)  # names, shapes and values against the registry
-    assert set(opts.bounds) | set(opts.fixed) == set(model.names)
-    for pname, (lo, hi) in opts.bounds.items():  # documented bounds are the registry's own
-        assert (lo, hi) == (model.param(pname).lower, model.param(pname).upper)
+    assert opts.loss and opts.cutoff and opts.solver and opts.rtol and opts.max_steps
+    text = path.read_text()
+    for pname in model.names:  # every parameter is listed to edit (start value and bounds)
+        assert len(re.findall(rf"^(# )?{re.escape(pname)} = ", text, re.M)) >= 2 - (
+            pname in opts.fixed), f"{path.name} does not list {pname}"
 
 
 @pytest.mark.parametrize("path", PRESETS, ids=[p.stem for p in PRESETS])
