@@ -210,6 +210,18 @@ def test_measured_only_figures(lambert_table, tmp_path):
     assert labels == ["measured", "R", "G", "B"] and "lambert" in fig.get_suptitle()
 
 
+def test_sparse_samples_leave_honest_holes():
+    rng = np.random.default_rng(3)
+    wi, wo = (np.abs(rng.normal(size=(40, 3))) for _ in range(2))
+    wi, wo = (w / np.linalg.norm(w, axis=-1, keepdims=True) for w in (wi, wo))
+    sparse = SampleSet(wi, wo, np.full((40, 3), 0.1), np.ones(40, bool), name="sparse")
+    assert np.isnan(measured_albedo(sparse, [0.0, 60.0])).all()  # coverage far below 0.9
+    meas, have, fit = slice_data(sparse, GGX, GGX_TRUE)
+    assert have.sum() <= 40 and np.isnan(meas[~have]).all() and fit.shape == meas.shape
+    img = render_sphere(measured_lookup(sparse), 32)
+    assert np.isfinite(img).all() and (img == 0).all(axis=-1).mean() > 0.5  # holes are black
+
+
 def _check_png(path, min_size=(300, 500)):
     img = mpimg.imread(path)
     assert img.ndim == 3 and img.shape[0] >= min_size[0] and img.shape[1] >= min_size[1]

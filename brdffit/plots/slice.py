@@ -13,8 +13,9 @@ interesting features of the MERL materials are visible in this one slice.
 
 Display: both images share one exposure (the median measured value maps to 0.25, i.e. mid-grey
 after gamma 2.2: the diffuse body is readable and the specular and Fresnel peaks clip, as in
-Burley's Fig. 1); the ratio panel is ``log10((fit + ε)/(measured + ε))`` (ε of :mod:`.error`) on a
-diverging colormap with symmetric limits. Missing cells are drawn in :data:`._style.MISSING_RGB`.
+Burley's Fig. 1); the ratio panel is ``log10((fit + ε)/(measured + ε))`` (ε of :mod:`.error`),
+the Rec. 709-weighted mean over the channels, on a diverging colormap with symmetric limits.
+Missing cells are drawn in :data:`._style.MISSING_RGB`.
 """
 
 from __future__ import annotations
@@ -58,7 +59,9 @@ def _binned_slice(samples, model, params, phi_d_deg: float, tol_deg: float, bins
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.stack(sums, axis=-1).reshape(bins, bins, 3) / count[..., None]
 
-    fit = binned(evaluate_model(model, params, wi, wo)) if (model is not None and len(wi)) else None
+    fit = None
+    if model is not None:  # no samples near the slice: an all-missing fitted panel, not none
+        fit = binned(evaluate_model(model, params, wi, wo)) if len(wi) else np.full((bins, bins, 3), np.nan)
     return binned(rgb), count > 0, fit
 
 
@@ -100,7 +103,7 @@ def _show_ratio(fig, ax, meas, fit, valid):
     cmap = _style.diverging_cmap()
     im = ax.imshow(lum.T, origin="lower", extent=(0, 1, 0, 90), aspect="auto",
                    interpolation="nearest", cmap=cmap, vmin=-vlim, vmax=vlim)
-    _decorate(ax, "log10(fitted / measured), luminance")
+    _decorate(ax, "log10(fitted / measured), Rec. 709-weighted RGB")
     fig.colorbar(im, ax=ax, label="log10 ratio  (red: fit too bright)", shrink=0.9)
 
 

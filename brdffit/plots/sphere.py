@@ -22,7 +22,7 @@ import numpy as np
 from matplotlib.patches import Circle
 
 from . import _style
-from ._eval import data_name, evaluate_model, measured_lookup
+from ._eval import data_name, evaluate_model, is_table, measured_lookup
 
 #: Default light: 45° from the view direction, towards the top of the image.
 DEFAULT_LIGHT = (0.0, np.sin(np.pi / 4), np.cos(np.pi / 4))
@@ -76,7 +76,8 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
                  error: str | None = None, title: str | None = None):
     """The lit-sphere figure: measured (table lookup / nearest sample) beside the fit, if any."""
     meas = render_sphere(measured_lookup(data), size, light_dir)
-    images = [("measured", meas)]
+    how = "trilinear table lookup" if is_table(data) else "nearest sample"
+    images = [(f"measured ({how})", meas)]
     if model is not None:
         fitted = render_sphere(lambda wi, wo: evaluate_model(model, params, wi, wo), size, light_dir)
         images.append(("fitted (same exposure)", fitted))
