@@ -213,3 +213,33 @@ def test_info_of_a_sample_list(capsys, tmp_path):
     assert figures["peak_theta_i_deg"] == pytest.approx(10)
     assert main(["info", str(tmp_path / "s.csv")]) == 0
     assert "valid_fraction    1" in capsys.readouterr().out
+
+
+def test_demo_recovers_the_known_material(capsys, tmp_path):
+    """The README's main job (on a subsample, to keep the test quick)."""
+    from brdffit.cli.demo import TRUTH as DEMO_TRUTH
+
+    outdir = tmp_path / "demo"
+    assert main(["demo", "--outdir", str(outdir), "--subsample", "20000", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "recovered against true" in out and "alpha" in out
+    result = json.loads((outdir / "result.json").read_text())
+    for name, true in DEMO_TRUTH.items():  # 1% noise: close, not exact
+        np.testing.assert_allclose(result["params"][name], true, rtol=0.03, atol=2e-3)
+    assert sorted(p.name for p in outdir.iterdir()) == [
+        "demo-albedo.png", "demo-peaks.png", "demo-slice.png", "demo-spheres.png", "result.json"]
+    # a second run refuses to overwrite, before doing any work
+    _fails(capsys, ["demo", "--outdir", str(outdir)], "already exists; pass --force")
+
+
+def test_synth_noise_is_multiplicative_with_the_given_sigma():
+    from brdffit.cli.synth import synthesize_samples
+
+    ggx = brdffit.get_model("ggx")
+    clean = synthesize_samples(ggx, TRUTH, 20000, seed=4)
+    noisy = synthesize_samples(ggx, TRUTH, 20000, noise=0.05, seed=4)
+    np.testing.assert_array_equal(noisy.wi, clean.wi)  # same directions for the same seed
+    ratio = noisy.rgb / clean.rgb - 1.0
+    assert abs(ratio.std() - 0.05) < 0.002 and abs(ratio.mean()) < 0.002
+    half = (clean.wi + clean.wo) / np.linalg.norm(clean.wi + clean.wo, axis=-1, keepdims=True)
+    assert np.mean(half[:, 2] > np.cos(np.radians(10))) > 0.1  # dense near the peak
