@@ -32,7 +32,7 @@ from data_formats import MERLTable, SampleSet, synthesize
 
 RHO = np.array([0.2, 0.5, 0.8])
 GGX = get_model("ggx")
-GGX_TRUE = {"diffuse": np.array([0.3, 0.12, 0.05]), "f0": np.array([0.05, 0.05, 0.05]), "alpha": 0.1}
+GGX_TRUE = {"diffuse": np.array([0.3, 0.12, 0.05]), "f0": np.full(3, 0.05), "alpha": 0.1}
 # A plain Lambert model (not registered): albedo exactly ρ, used as a closed-form reference.
 LAMBERT = Model("lambert-only", "Lambert", (Param("diffuse", (3,), 0.0, 1.0, 0.5, "albedo"),),
                 fn=lambda p, wi, wo: lambert(p["diffuse"], wi, wo))
@@ -94,7 +94,8 @@ def _albedo_in_omega_o(fn, theta_i_deg, n=250):
 
 @pytest.mark.parametrize("alpha", [0.15, 0.5])
 def test_albedo_of_ggx_model_matches_omega_o_quadrature(alpha):
-    params = {"diffuse": np.array([0.3, 0.1, 0.0]), "f0": np.array([0.9, 0.5, 0.04]), "alpha": alpha}
+    params = {"diffuse": np.array([0.3, 0.1, 0.0]), "f0": np.array([0.9, 0.5, 0.04]),
+              "alpha": alpha}
     theta = np.array([0.0, 40.0, 70.0])
     got = model_albedo(GGX, params, theta)
     ref = _albedo_in_omega_o(lambda wi, wo: evaluate_model(GGX, params, wi, wo), theta)
@@ -172,7 +173,8 @@ def test_slice_puts_a_known_peak_in_the_right_place(tmp_path):
     lum = panel.mean(axis=-1)
     rows, cols = np.nonzero(lum > 0.98 * lum.max())
     px, py = ax.transData.transform((i0 / 90 + 0.5 / 90, j0 + 0.5))  # bump centre, display px
-    assert abs(cols.mean() + int(x0) + 1 - px) < 3 and abs(rows.mean() + int(height - y1) + 1 - (height - py)) < 3
+    top, left = int(height - y1) + 1, int(x0) + 1  # the panel's corner in PNG rows/columns
+    assert abs(cols.mean() + left - px) < 3 and abs(rows.mean() + top - (height - py)) < 3
     missing = panel[np.all(np.abs(panel - np.array([0.55, 0.0, 0.55])) < 0.02, axis=-1)]
     assert len(missing) > 50  # the missing cells are drawn in their own colour
 
@@ -189,7 +191,7 @@ def test_peak_curves_pass_through_the_cells_of_the_true_model(ggx_table):
     np.testing.assert_allclose(y_c[inner], np.log(y_m[inner]), atol=0.02)
 
 
-# -- files ------------------------------------------------------------------------------------------
+# -- files ----------------------------------------------------------------------------------------
 
 def test_figure_paths_names():
     assert [p.name for p in figure_paths("out/fig.png")] == [

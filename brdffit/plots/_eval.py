@@ -54,7 +54,7 @@ def _jitted(model):
 
 
 def evaluate_model(model, params: Mapping | None, wi, wo, *, chunk: int = CHUNK) -> np.ndarray:
-    """RGB ``f_r`` of ``model`` with ``params`` at directions ``wi, wo`` ``(..., 3)`` → ``(..., 3)``.
+    """RGB ``f_r`` of ``model`` with ``params`` at directions ``wi, wo`` ``(..., 3)``: ``(..., 3)``.
 
     Missing parameters take the model's defaults. Evaluation runs in chunks of ``chunk``
     directions; padding uses the pair ``(z, z)`` so it never produces NaN. The dtype follows JAX's
@@ -121,13 +121,14 @@ def _nearest_sample_lookup(samples, max_dist: float):
     ok = np.asarray(samples.valid, bool) & np.all(np.isfinite(samples.rgb), axis=-1)
     if not ok.any():
         return lambda wi, wo: np.full(np.broadcast_shapes(np.shape(wi), np.shape(wo)), np.nan)
-    pts = np.clip(warped_coords(samples.wi[ok], samples.wo[ok]), 0.0, [9.0, 9.0, np.nextafter(1, 0)])
+    top = [9.0, 9.0, np.nextafter(1.0, 0.0)]  # inside the periodic box of the tree
+    pts = np.clip(warped_coords(samples.wi[ok], samples.wo[ok]), 0.0, top)
     tree = cKDTree(pts, boxsize=[10.0, 10.0, 1.0])  # periodic in φd only
     rgb = np.asarray(samples.rgb, float)[ok]
 
     def sample_lookup(wi, wo):
         wi, wo = np.broadcast_arrays(np.asarray(wi, float), np.asarray(wo, float))
-        q = np.clip(warped_coords(wi, wo).reshape(-1, 3), 0.0, [9.0, 9.0, np.nextafter(1, 0)])
+        q = np.clip(warped_coords(wi, wo).reshape(-1, 3), 0.0, top)
         dist, idx = tree.query(q, distance_upper_bound=max_dist)
         hit = np.isfinite(dist)
         out = np.full((len(q), 3), np.nan)

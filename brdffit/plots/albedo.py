@@ -16,12 +16,13 @@ accurate for a periodic integrand), weight ``sin θh · π u du dφh``. The inte
 factors ``cos θo`` and ``wi·h``, which vanish on the masked boundaries, so it is continuous there.
 
 Accuracy with the defaults (64 × 128 nodes per θi), as measured when this was written:
-a synthesized Lambertian MERL table (trilinear lookup) gives ρ within 4e-4 at 45 angles from 0° to
-89°, the analytic Lambert model within 1.4e-4; the registry's ``ggx`` (α = 0.15, 0.5) agrees with an
-independent Gauss–Legendre integral over ``ωo`` (400 × 400; 250 × 250 in the test) within 1.6e-4 at θi = 0°, 40°, 70°
-(``tests/test_plots.py`` asserts 2e-3, 1e-3, 1e-3). Against a 512 × 1024 grid of the same kind the
-default grid is within 5e-4 for α from 0.002 to 0.5 at every θi up to 89°: a direct ``ωo`` grid
-needs thousands of nodes per axis for α = 0.02 near grazing, this one does not.
+a synthesized Lambertian MERL table (trilinear lookup) gives ρ within 4e-4 at 45 angles from 0°
+to 89°, the analytic Lambert model within 1.4e-4; the registry's ``ggx`` (α = 0.15, 0.5) agrees
+with an independent Gauss–Legendre integral over ``ωo`` (400 × 400; 250 × 250 in the test)
+within 1.6e-4 at θi = 0°, 40°, 70° (``tests/test_plots.py`` asserts 2e-3, 1e-3, 1e-3). Against
+a 512 × 1024 grid of the same kind the default grid is within 5e-4 for α from 0.002 to 0.5 at
+every θi up to 89°: a direct ``ωo`` grid needs thousands of nodes per axis for α = 0.02 near
+grazing, this one does not.
 The *measured* albedo of a table synthesized from ``ggx`` agrees with the model's within 1e-3 up
 to θi = 70° for α ≥ 0.02; towards grazing the table's resolution shows (θi = 89°: +5e-4 at
 α = 0.5, +8e-3 at α = 0.1, +8e-2 at α = 0.02): that is the data's limit, not the quadrature's.
@@ -58,7 +59,7 @@ def half_vector_grid(n_u: int = 64, n_phi: int = 128, split: float = 0.3):
 
 
 def _quadrature(theta_i_deg, n_u, n_phi):
-    """Per θi: ``wi``, ``wo`` ``(T, M, 3)`` and weights ``(T, M)`` including ``cosθo · 4 (wi·h)``."""
+    """Per θi: ``wi``, ``wo`` ``(T, M, 3)``, weights ``(T, M)`` including ``cosθo · 4 (wi·h)``."""
     h, w = half_vector_grid(n_u, n_phi)
     t = np.radians(np.asarray(theta_i_deg, float))
     wi = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1)[:, None, :]

@@ -33,7 +33,7 @@ def _table_pairs(table, idx):
 
 
 def error_pairs(data, *, max_samples: int = 100_000, seed: int = 0):
-    """``(wi, wo, rgb)`` of at most ``max_samples`` valid, above-horizon measurements (fixed seed)."""
+    """``(wi, wo, rgb)``: at most ``max_samples`` valid measurements above the horizon (seeded)."""
     rng = np.random.default_rng(seed)
     if is_table(data):
         idx = np.flatnonzero(np.asarray(data.valid, bool))

@@ -34,13 +34,14 @@ def _measured_row(data, theta_d_deg, phi_d_deg, td_tol, pd_tol):
         j = int(np.clip(np.floor(theta_d_deg / 90.0 * n_td), 0, n_td - 1))
         k = int(np.clip(np.floor(phi_d_deg / 180.0 * n_pd), 0, n_pd - 1))
         i = np.arange(n_th)
-        th = np.degrees(cell_angles(i, np.full_like(i, j), np.full_like(i, k), (n_th, n_td, n_pd))[0])
+        th = np.degrees(cell_angles(i, np.full_like(i, j), np.full_like(i, k), data.valid.shape)[0])
         rgb = np.asarray(data.rgb, float)[:, j, k]
         ok = np.asarray(data.valid, bool)[:, j, k]
         return th[ok], rgb[ok]
     ok = np.asarray(data.valid, bool) & np.all(np.isfinite(data.rgb), axis=-1)
     u = warped_coords(data.wi[ok], data.wo[ok])
-    near = (np.abs(u[:, 1] * 90.0 - theta_d_deg) < td_tol) & (np.abs(u[:, 2] * 180.0 - phi_d_deg) < pd_tol)
+    near = np.abs(u[:, 1] * 90.0 - theta_d_deg) < td_tol
+    near &= np.abs(u[:, 2] * 180.0 - phi_d_deg) < pd_tol
     order = np.argsort(u[near, 0])
     return _style.unwarp_theta_h(u[near, 0][order]), np.asarray(data.rgb, float)[ok][near][order]
 

@@ -60,8 +60,10 @@ def _binned_slice(samples, model, params, phi_d_deg: float, tol_deg: float, bins
             return np.stack(sums, axis=-1).reshape(bins, bins, 3) / count[..., None]
 
     fit = None
-    if model is not None:  # no samples near the slice: an all-missing fitted panel, not none
-        fit = binned(evaluate_model(model, params, wi, wo)) if len(wi) else np.full((bins, bins, 3), np.nan)
+    if model is not None and len(wi):
+        fit = binned(evaluate_model(model, params, wi, wo))
+    elif model is not None:  # no samples near the slice: an all-missing fitted panel, not none
+        fit = np.full((bins, bins, 3), np.nan)
     return binned(rgb), count > 0, fit
 
 

@@ -79,7 +79,8 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
     how = "trilinear table lookup" if is_table(data) else "nearest sample"
     images = [(f"measured ({how})", meas)]
     if model is not None:
-        fitted = render_sphere(lambda wi, wo: evaluate_model(model, params, wi, wo), size, light_dir)
+        fitted = render_sphere(lambda wi, wo: evaluate_model(model, params, wi, wo), size,
+                               light_dir)
         images.append(("fitted (same exposure)", fitted))
     exposure = _style.robust_exposure(meas, 99.5, target=0.85)
     fig = _style.new_figure(4.1 * len(images), 4.6)
@@ -93,7 +94,8 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
     light = np.asarray(light_dir, float) / np.linalg.norm(light_dir)
     elev = np.degrees(np.arccos(np.clip(light[2], -1, 1)))
     fig.supxlabel(f"directional light {elev:.0f}° from the view axis, towards "
-                  f"({light[0]:+.2f}, {light[1]:+.2f}) in the image\nexposure ×{exposure:.3g}, sRGB",
+                  f"({light[0]:+.2f}, {light[1]:+.2f}) in the image\n"
+                  f"exposure ×{exposure:.3g}, sRGB",
                   fontsize=8)
     name = getattr(model, "name", model) if model is not None else None
     fig.suptitle(title or _style.figure_title(data_name(data), name, error, "Lit sphere"))
