@@ -1,0 +1,30 @@
+"""The Ashikhmin–Premože–Shirley (SIGGRAPH 2000) microfacet BRDF generator.
+
+A BRDF from *any* microfacet distribution ``p(h)``: :mod:`.distributions` (the ``p(h)``),
+:mod:`.quadrature` (rules on the sphere), :mod:`.tables` (``g(k)``, ``⟨⟨hn⟩⟩``, eqs. 18, 22, 25),
+:mod:`.specular` (eqs. 26 and 14), :mod:`.diffuse` (eqs. 28–30), :mod:`.models` (the whole BRDF
+and the registered models). Importing :mod:`brdffit.models` registers the models.
+"""
+
+from .diffuse import RTable, aps_diffuse, aps_diffuse_metal, build_r_table
+from .distributions import (
+    AnisotropicGaussian,
+    Distribution,
+    FunctionDistribution,
+    Mixture,
+    NDFDistribution,
+    TabulatedDistribution,
+    TiltedGaussian,
+    Velvet,
+    satin,
+    v_groove,
+)
+from .specular import CORRELATED, UNCORRELATED, Correlated, Uncorrelated, aps_specular
+from .tables import COARSE, GTable, Resolution, build_g_table
+
+__all__ = [
+    "AnisotropicGaussian", "COARSE", "CORRELATED", "Correlated", "Distribution", "FunctionDistribution",
+    "GTable", "Mixture", "NDFDistribution", "RTable", "Resolution", "TabulatedDistribution",
+    "TiltedGaussian", "UNCORRELATED", "Uncorrelated", "Velvet", "aps_diffuse", "aps_diffuse_metal",
+    "aps_specular", "build_g_table", "build_r_table", "satin", "v_groove",
+]
