@@ -27,7 +27,7 @@ from brdffit.plots import (
     save_png,
     slice_data,
 )
-from brdffit.plots.sphere import DEFAULT_LIGHT
+from brdffit.plots.sphere import DEFAULT_LIGHT, sphere_directions
 from data_formats import MERLTable, SampleSet, synthesize
 
 RHO = np.array([0.2, 0.5, 0.8])
@@ -123,6 +123,16 @@ def test_sphere_of_lambertian_table_is_rho_over_pi_cos(lambert_table):
         n = np.array([x, y, np.sqrt(1 - x * x - y * y)])
         np.testing.assert_allclose(img[row, col], RHO / np.pi * max(n @ light, 0.0), rtol=2e-3)
     assert np.all(img[0, 0] == 0) and np.all(img[63, 63] == 0)  # background is black
+
+
+def test_sphere_shading_frames_are_orthonormal_and_keep_angles():
+    inside, n, wi, wo = sphere_directions(48, (0.3, -0.2, 0.9))
+    light = np.array([0.3, -0.2, 0.9]) / np.linalg.norm([0.3, -0.2, 0.9])
+    np.testing.assert_allclose(np.linalg.norm(wi, axis=-1), 1.0, atol=1e-12)
+    np.testing.assert_allclose(wi[..., 2], n @ light, atol=1e-12)  # cos θi = n·l
+    np.testing.assert_allclose(wo[..., 2], n[..., 2], atol=1e-12)  # cos θo = n·v, v = z
+    np.testing.assert_allclose(np.sum(wi * wo, -1), np.broadcast_to(light[2], inside.shape),
+                               atol=1e-12)  # the frame is a rotation: l·v is preserved
 
 
 def test_sphere_brightest_where_normal_meets_light():
