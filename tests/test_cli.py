@@ -48,7 +48,7 @@ def test_synth_info_fit_plot_end_to_end(table, workdir):
     assert figures["peak"]["value"] > 100  # the GGX peak of a shiny material, far above diffuse
 
     fit = brdffit_cli("fit", table, "--model", "ggx", "--subsample", 4000, "--json",
-                      "--out", "r.json", cwd=workdir)
+                      "--out", "r.json", "--table", "fitted.binary", cwd=workdir)
     assert fit.returncode == 0, fit.stderr
     assert fit.stderr == ""  # piped: no progress, no warnings
     result = json.loads(fit.stdout)
@@ -56,6 +56,11 @@ def test_synth_info_fit_plot_end_to_end(table, workdir):
     assert result["success"] and result["model_name"] == "ggx"
     for name, true in TRUTH.items():
         np.testing.assert_allclose(result["params"][name], true, rtol=1e-3)
+    from data_formats.merl import read_merl
+
+    measured, fitted = read_merl(table), read_merl(workdir / "fitted.binary")
+    np.testing.assert_array_equal(fitted.valid, measured.valid)
+    np.testing.assert_allclose(fitted.rgb, measured.rgb, rtol=1e-3)  # the same material
 
     plot = brdffit_cli("plot", table, "--fit", "r.json", "-o", "fig.png", cwd=workdir)
     assert plot.returncode == 0, plot.stderr
