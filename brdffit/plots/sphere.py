@@ -93,8 +93,8 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
         ax.set_axis_off()
     light = np.asarray(light_dir, float) / np.linalg.norm(light_dir)
     elev = np.degrees(np.arccos(np.clip(light[2], -1, 1)))
-    fig.supxlabel(f"directional light {elev:.0f}° from the view axis, towards "
-                  f"({light[0]:+.2f}, {light[1]:+.2f}) in the image\n"
+    fig.supxlabel(f"directional light {elev:.0f}° off the view axis,\n"
+                  f"towards ({light[0]:+.2f}, {light[1]:+.2f}) in the image; "
                   f"exposure ×{exposure:.3g}, sRGB",
                   fontsize=8)
     name = getattr(model, "name", model) if model is not None else None
