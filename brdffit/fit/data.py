@@ -26,6 +26,9 @@ from .losses import Loss
 
 #: Fewer usable cells than this (times the number of free parameters) is an error.
 MIN_CELLS_PER_PARAM = 3
+#: Cells per block of the Jacobian accumulation (:func:`brdffit.fit.normal_form.gram`); larger
+#: selections are padded with zero-weight cells to a whole number of blocks.
+CHUNK_CELLS = 32768
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,12 +82,10 @@ def as_subsample(subsample) -> Subsample | None:
 
 class FitData(eqx.Module):
     """Device arrays of the selected cells (``n`` rows); the residual of cell ``k`` channel ``c``
-    is ``sqrt_weight[k, c] * (g(pred) - target[k, c])``."""
+    is ``sqrt_weight[k, c] * (g(pred) - target[k, c])``. Cosines are ``wi[:, 2]``, ``wo[:, 2]``."""
 
     wi: jax.Array
     wo: jax.Array
-    cos_i: jax.Array  # (n, 1)
-    cos_o: jax.Array  # (n, 1)
     rgb: jax.Array  # measured f_r, zero where masked
     target: jax.Array  # g(rgb)
     sqrt_weight: jax.Array  # (n, 3); zero where masked
@@ -92,13 +93,15 @@ class FitData(eqx.Module):
 
 @dataclasses.dataclass(frozen=True)
 class Selection:
-    """What was selected: counts for the result, and the data on the device."""
+    """What was selected: counts, host copies (for the initial guess) and the device data."""
 
     data: FitData
     index: np.ndarray  # rows of the SampleSet that were kept (static selection)
     n_total: int
     n_usable: int  # above the horizon and within the cutoff
     n_used: int  # of the selected rows, those with a valid value
+    chunks: int  # number of equal blocks the (padded) rows split into
+    host: tuple  # (wi, wo, rgb, good) of the selected rows, NumPy, unpadded
 
 
 def _static_rows(wi, wo, cutoff):
@@ -112,8 +115,19 @@ def _static_rows(wi, wo, cutoff):
     return np.flatnonzero(ok)
 
 
-def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype=np.float64):
-    """Build the :class:`FitData` for ``samples`` (a ``SampleSet``) under ``loss``."""
+def _gather(a, rows, n_rows: int, fill, dtype):
+    """``a[rows]`` in ``dtype`` with rows appended up to ``n_rows``, filled with ``fill``."""
+    out = np.empty((n_rows,) + a.shape[1:], dtype)
+    if a.dtype == out.dtype:
+        np.take(a, rows, axis=0, out=out[: len(rows)])
+    else:
+        out[: len(rows)] = a[rows]
+    out[len(rows) :] = fill
+    return out
+
+
+def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="float64"):
+    """Build the :class:`Selection` of ``samples`` (a ``SampleSet``) under ``loss``."""
     wi, wo = np.asarray(samples.wi, float), np.asarray(samples.wo, float)
     rows = _static_rows(wi, wo, cutoff)
     n_usable = len(rows)
@@ -122,15 +136,29 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype=np
         h = wi[rows] + wo[rows]
         theta_h = np.arccos(np.clip(h[:, 2] / np.linalg.norm(h, axis=1), -1, 1))
         rows = rows[sub.choose(theta_h, np.random.default_rng(seed))]
-    rgb = np.asarray(samples.rgb, float)[rows]
-    good = np.asarray(samples.valid, bool)[rows] & np.all(np.isfinite(rgb) & (rgb >= 0), axis=1)
-    rgb = np.where(good[:, None], rgb, 0.0)
-    ci, co = wi[rows, 2:3], wo[rows, 2:3]
-    target = np.asarray(loss.transform(jnp.asarray(rgb), ci, co))
-    sw = np.sqrt(loss.weight(rgb, ci, co)) * good[:, None]
-    arrays = [wi[rows], wo[rows], ci, co, rgb, np.where(good[:, None], target, 0.0), sw]
-    data = FitData(*(jnp.asarray(a, dtype=dtype) for a in arrays))
-    return Selection(data, rows, len(wi), n_usable, int(np.count_nonzero(good)))
+    chunks, pad = _blocks(len(rows))
+    n, k = len(rows) + pad, len(rows)
+    up = (0.0, 0.0, 1.0)  # padding cells: normal incidence, zero weight
+    wi, wo = _gather(wi, rows, n, up, dtype), _gather(wo, rows, n, up, dtype)
+    rgb = _gather(np.asarray(samples.rgb, float), rows, n, 0.0, "float64")
+    good = np.zeros(n, bool)
+    good[:k] = np.asarray(samples.valid, bool)[rows]
+    good &= np.all(np.isfinite(rgb) & (rgb >= 0), axis=1)
+    rgb[~good] = 0.0
+    sw = (np.sqrt(loss.weight(rgb, wi[:, 2:3], wo[:, 2:3])) * good[:, None]).astype(dtype)
+    dev = [jnp.asarray(a) for a in (wi, wo, rgb.astype(dtype, copy=False), sw)]
+    target = jnp.where(dev[3] > 0, loss.transform(dev[2], dev[0][:, 2:3], dev[1][:, 2:3]), 0.0)
+    data = FitData(dev[0], dev[1], dev[2], target, dev[3])
+    host = (wi[:k], wo[:k], rgb[:k], good[:k])
+    return Selection(data, rows, len(samples.wi), n_usable, int(np.count_nonzero(good)), chunks, host)
+
+
+def _blocks(n: int) -> tuple[int, int]:
+    """Number of blocks and padding rows for ``n`` selected cells."""
+    if n <= CHUNK_CELLS:
+        return 1, 0
+    chunks = -(-n // CHUNK_CELLS)
+    return chunks, chunks * CHUNK_CELLS - n
 
 
 def check_enough(selection: Selection, n_free: int, name: str = "") -> None:

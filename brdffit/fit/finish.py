@@ -10,7 +10,7 @@ import optimistix as optx
 
 from ..errors import FitError
 from .result import FitResult
-from .statistics import covariance, gauss_newton_at, metrics_at
+from .statistics import covariance
 from .transforms import at_bound
 
 
@@ -37,27 +37,25 @@ def _by_param(model, flat):
     return out
 
 
-def make_result(*, model, problem, sel, u, u0, code, steps, costs, x_start, fixed_idx, loss,
-                solver, throw, name, times, emit):
+def make_result(*, model, problem, sel, out, u0, costs, x_start, fixed_idx, loss, solver, throw,
+                name, times, emit):
     """Assemble the :class:`FitResult` (raises :class:`FitError` on failure if ``throw``)."""
-    finite = bool(np.all(np.isfinite(u)))
-    u = u if finite else np.asarray(u0)
-    status, message = _message(int(code), finite, " Increase `max_steps` or start elsewhere.")
-    success = finite and int(code) == 0
+    u, code = np.asarray(out["u"], float), int(out["code"])
+    finite = bool(np.all(np.isfinite(u)) and np.isfinite(out["cost"]))
+    status, message = _message(code, finite, " Increase `max_steps` or start elsewhere.")
+    success = finite and code == 0
     if throw and not success:
         raise FitError(f"{model.name} fit of {name or 'table'} did not converge: {message}")
-    x_free = problem.physical(jnp.asarray(u))
+    if not finite:
+        u = np.asarray(u0, float)
+    x_free = np.asarray(problem.physical(jnp.asarray(u)), float)
     bound = at_bound(u)
-    keep = jnp.asarray(bound == 0)
-    metrics, cost, m = metrics_at(problem, x_free, sel.data)
-    r, jtj = gauss_newton_at(problem, x_free, sel.data, keep)
-    sum_r2 = float(jnp.sum(jnp.square(r.astype(jtj.dtype))))
-    cov_free, regular = covariance(jtj, sum_r2, float(m), bound == 0)
-    if not regular and not message:
+    cost = float(out["cost"]) if finite else float("nan")
+    cov_free, regular = covariance(out["jtj"], out["dxdu"], 2 * cost, float(out["m"]), bound == 0)
+    if finite and not regular and not message:
         message = "JᵀJ is singular at the optimum: some parameters are not identified by the data"
-    x = np.asarray(problem.full_vector(x_free), float)
-    names = model.flat_names()
-    free = list(problem.free)
+    x = np.asarray(problem.full_vector(jnp.asarray(x_free)), float)
+    names, free = model.flat_names(), list(problem.free)
     cov = np.zeros((len(x), len(x)))
     cov[np.ix_(free, free)] = cov_free
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
@@ -69,8 +67,8 @@ def make_result(*, model, problem, sel, u, u0, code, steps, costs, x_start, fixe
         names=names, x=x, cov=cov, free=[names[i] for i in free],
         fixed=[names[i] for i in fixed_idx],
         at_bound={names[f]: ("lower" if b < 0 else "upper") for f, b in zip(free, bound) if b},
-        cost=float(cost), metrics={k: float(v) for k, v in metrics.items()},
-        success=success, status=status, message=message, steps=int(steps),
+        cost=cost, metrics={k: float(v) for k, v in out["metrics"].items()},
+        success=success, status=status, message=message, steps=int(out["steps"]),
         starts=[float(c) for c in costs], loss=loss.label, solver=solver,
         n_cells=sel.n_used, n_total=sel.n_total, init=_by_param(model, x_start),
         wall_time=t3 - t0, timings={"prepare": t1 - t0, "solve": t2 - t1, "finish": t3 - t2},

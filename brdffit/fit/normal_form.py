@@ -46,47 +46,59 @@ import jax.numpy as jnp
 RANK_RTOL = 1e-13
 
 
-def gram(residual: Callable, u):
-    """``(r, JᵀJ, Jᵀr)`` of ``residual(u)`` (a flat array) from one ``jvp`` per entry of ``u``.
+def chunked(data, chunks: int):
+    """Every leaf of ``data`` reshaped ``(n, ...) -> (chunks, n // chunks, ...)``."""
+    return jax.tree.map(lambda a: a.reshape((chunks, a.shape[0] // chunks) + a.shape[1:]), data)
 
-    ``residual(u)`` may compute in float32; the products are accumulated in float64 when x64 is
-    enabled (``preferred_element_type``).
+
+def gram(columns: Callable, u, data, chunks: int = 1):
+    """``(Σ r², JᵀJ, Jᵀr)`` from ``columns(u, data_chunk) -> (r, J)``, chunk by chunk.
+
+    ``J`` comes as ``p`` rows of length ``m``. The cells are processed in ``chunks`` equal
+    blocks (a ``lax.scan``), so the Jacobian rows of one block stay in cache and the whole
+    Jacobian is never in memory. Rows may be float32; the sums are float64 when x64 is enabled.
     """
-    r = residual(u)
-    eye = jnp.eye(u.shape[0], dtype=u.dtype)
-
-    def column(t):
-        return jax.jvp(residual, (u,), (t,))[1]
-
-    cols = jax.lax.map(column, eye) if u.shape[0] > 16 else jax.vmap(column)(eye)
     acc = jnp.promote_types(u.dtype, jnp.float32)
-    jtj = jnp.dot(cols, cols.T, preferred_element_type=acc)
-    jtr = jnp.dot(cols, r, preferred_element_type=acc)
-    return r, jtj, jtr
+    p = u.shape[0]
+
+    def block(carry, chunk):
+        r, cols = columns(u, chunk)
+        r, cols = r.astype(acc), cols.astype(acc)
+        s, jtj, jtr = carry
+        return (s + jnp.sum(r * r), jtj + cols @ cols.T, jtr + cols @ r), None
+
+    init = (jnp.zeros((), acc), jnp.zeros((p, p), acc), jnp.zeros((p,), acc))
+    if chunks == 1:
+        return block(init, data)[0]
+    return jax.lax.scan(block, init, chunked(data, chunks))[0]
 
 
-def compress(r, jtj, jtr):
-    """``(r̃, R)`` with ``RᵀR = JᵀJ``, ``Rᵀ r̃[:p] = Jᵀr`` and ``‖r̃‖ = ‖r‖`` (module docstring)."""
-    acc = jtj.dtype
+def compress(sum_r2, jtj, jtr):
+    """``(r̃, R)`` with ``RᵀR = JᵀJ``, ``Rᵀ r̃[:p] = Jᵀr`` and ``‖r̃‖² = Σ r²`` (module docstring)."""
     lam, vec = jnp.linalg.eigh(jtj)
     keep = lam > RANK_RTOL * jnp.max(jnp.abs(lam))
     sq = jnp.sqrt(jnp.where(keep, lam, 1.0))
     rmat = jnp.where(keep[:, None], sq[:, None] * vec.T, 0.0)  # R = Λ^½ Vᵀ
     head = jnp.where(keep, (vec.T @ jtr) / sq, 0.0)  # R^{-ᵀ} Jᵀ r
-    total = jnp.sum(jnp.square(r.astype(acc)))
-    tail = jnp.sqrt(jnp.maximum(total - jnp.sum(head**2), 0.0))
+    tail = jnp.sqrt(jnp.maximum(sum_r2 - jnp.sum(head**2), 0.0))
     return jnp.concatenate([head, tail[None]]), rmat
 
 
-def normal_form(residual: Callable) -> Callable:
+def normal_form(columns: Callable, chunks: int = 1) -> Callable:
     """``fn(u, args) -> r̃`` for optimistix, whose derivative is the Gauss–Newton ``J̃``.
 
-    ``residual(u, args)`` returns the full flat residual. The returned function is only meant to
-    be differentiated once, to first order, by the solver (its ``jvp`` is ``J̃ δ``).
+    ``columns(u, data)`` returns the flat residual and its Jacobian rows ``(r, J)`` for a block of
+    cells (``data`` is split into ``chunks`` blocks, see :func:`gram`). ``args = (data, floor)``:
+    ``floor`` is a constant added to the cost ``½‖r̃‖²`` (through ``c``), see
+    :meth:`brdffit.fit.problem.Problem.cost_floor`; it changes no step, gradient or ratio. The
+    returned function is only meant to be differentiated once, to first order, by the solver
+    (its ``jvp`` is ``J̃ δ``).
     """
 
     def _both(u, args):
-        return compress(*gram(lambda v: residual(v, args), u))
+        data, floor = args
+        sum_r2, jtj, jtr = gram(columns, u, data, chunks)
+        return compress(sum_r2 + 2.0 * floor, jtj, jtr)
 
     @jax.custom_jvp
     def fn(u, args):

@@ -23,11 +23,12 @@ from .data import check_enough, select
 from .losses import DEFAULT_LOSS, get_loss
 from .normal_form import normal_form
 from .problem import Problem
+from .statistics import metrics_at
 from .setup import assign, check_within, flat_bounds, flat_log
-from .solvers import DEFAULT_SOLVER, make_solver, solver_label
+from .solvers import COST_NOISE, DEFAULT_SOLVER, make_solver, solver_label
 from .transforms import bounds_in_s, to_unconstrained
 
-_PROGRESS = {"fn": None, "start": 0}
+_PROGRESS = {"fn": None, "start": 0, "floor": 0.0}
 
 
 def _emit(event: str, **info):
@@ -37,7 +38,8 @@ def _emit(event: str, **info):
 
 
 def _step_callback(step, loss):
-    _emit("step", start=_PROGRESS["start"], step=int(step), cost=float(loss))
+    cost = float(loss) - _PROGRESS["floor"]  # the solver's cost carries the constant floor
+    _emit("step", start=_PROGRESS["start"], step=int(step), cost=cost)
 
 
 def _verbose_hook(**kwargs):
@@ -46,10 +48,17 @@ def _verbose_hook(**kwargs):
 
 
 @eqx.filter_jit
-def _solve(problem: Problem, solver, u0, data, max_steps: int):
-    fn = normal_form(problem.residual)
-    sol = optx.least_squares(fn, solver, u0, args=data, max_steps=max_steps, throw=False)
-    return sol.value, sol.result._value, sol.stats["num_steps"], 0.5 * jnp.sum(fn(sol.value, data) ** 2)
+def _solve(problem: Problem, solver, u0, data, floor, max_steps: int):
+    """One optimistix solve, then the Gauss–Newton matrix and the metrics at its end point."""
+    fn = normal_form(problem.columns, problem.chunks)
+    sol = optx.least_squares(fn, solver, u0, args=(data, floor), max_steps=max_steps, throw=False)
+    jt = sol.state.f_info.jac.as_matrix()  # J̃ at sol.value: J̃ᵀJ̃ = JᵀJ (normal_form)
+    x, dxdu = jax.jvp(problem.physical, (sol.value,), (jnp.ones_like(sol.value),))
+    metrics, cost, m = metrics_at(problem, x, data)
+    return dict(
+        u=sol.value, code=sol.result._value, steps=sol.stats["num_steps"], jtj=jt.T @ jt,
+        dxdu=dxdu, metrics=metrics, cost=cost.astype(u0.dtype), m=m,
+    )
 
 
 def _default_dtype():
@@ -75,9 +84,8 @@ def _build_problem(model, loss, samples, fixed, init, bounds, dtype):
 
 def _start_point(model, sel, x0, lo, hi, free, fixed_idx, init):
     """Data-driven guess, then the user's ``init`` on top (fixed scalars keep their values)."""
-    d = sel.data
-    good = np.asarray(d.sqrt_weight)[:, 0] > 0
-    feats = init_mod.measure(np.asarray(d.rgb), np.asarray(d.wi), np.asarray(d.wo), good)
+    wi, wo, rgb, good = sel.host
+    feats = init_mod.measure(rgb, wi, wo, good)
     guess = model.flatten(init_mod.guess(model, feats))
     x = x0.copy()
     x[free] = guess[free]
@@ -96,20 +104,22 @@ def _starts(u0: np.ndarray, multistart: int, seed: int) -> list[np.ndarray]:
 
 
 def _run_starts(problem, solver, starts, data, max_steps):
-    """Solve from every start; return (u, result code, steps, cost) of the best, and all costs."""
+    """Solve from every start; return the raw output of the best and the cost of each."""
+    floor = problem.cost_floor(data, COST_NOISE[problem.compute_dtype])
+    _PROGRESS["floor"] = float(floor)
     best, costs = None, []
     for k, u0 in enumerate(starts):
         _PROGRESS["start"] = k
         _emit("start", start=k, of=len(starts))
-        u, code, steps, cost = _solve(problem, solver, jnp.asarray(u0), data, max_steps)
-        cost = float(cost)
-        ok = int(code) == 0 and np.all(np.isfinite(np.asarray(u))) and np.isfinite(cost)
+        out = jax.tree.map(np.asarray, _solve(problem, solver, jnp.asarray(u0), data, floor, max_steps))
+        cost = float(out["cost"])
+        ok = int(out["code"]) == 0 and np.all(np.isfinite(out["u"])) and np.isfinite(cost)
         costs.append(cost if np.isfinite(cost) else float("inf"))
-        _emit("start-done", start=k, cost=cost, steps=int(steps), success=bool(ok))
-        key = (not ok, cost if np.isfinite(cost) else np.inf)
+        _emit("start-done", start=k, cost=cost, steps=int(out["steps"]), success=bool(ok))
+        key = (not ok, costs[-1])
         if best is None or key < best[0]:
-            best = (key, np.asarray(u), int(code), int(steps), cost)
-    return best[1:], costs
+            best = (key, out)
+    return best[1], costs
 
 
 def fit(
@@ -163,17 +173,16 @@ def fit(
     model, loss_obj = get_model(model), get_loss(loss)
     dtype = precision or _default_dtype()
     rtol, atol = _tolerances(rtol, atol, dtype)
-    opt = make_solver(solver, rtol, atol, verbose=_verbose_hook if progress else False)
+    opt = make_solver(solver, rtol, atol, _verbose_hook if progress else None, COST_NOISE[dtype])
     samples = table.to_samples()
     x0, lo, hi, fixed_idx, free = _build_problem(model, loss_obj, samples, fixed, init, bounds, dtype)
-    data_dtype = np.float64 if jax.config.jax_enable_x64 else np.float32
-    sel = select(samples, loss_obj, cutoff=cutoff, subsample=subsample, seed=seed, dtype=data_dtype)
+    sel = select(samples, loss_obj, cutoff=cutoff, subsample=subsample, seed=seed, dtype=dtype)
     check_enough(sel, len(free), samples.name)
     x_start = _start_point(model, sel, x0, lo, hi, free, fixed_idx, init)
     log = flat_log(model)
     slo, shi = bounds_in_s(lo, hi, log)
     problem = Problem(
-        model, loss_obj, tuple(free), tuple(bool(b) for b in log[free]), dtype,
+        model, loss_obj, tuple(free), tuple(bool(b) for b in log[free]), dtype, sel.chunks,
         jnp.asarray(x_start), jnp.asarray(slo[free]), jnp.asarray(shi[free]),
     )
     u0 = to_unconstrained(x_start[free], slo[free], shi[free], log[free])
@@ -181,7 +190,7 @@ def fit(
     try:
         _emit("setup", n_cells=sel.n_used, n_free=len(free), model=model.name)
         t1 = time.perf_counter()
-        (u, code, steps, cost), costs = _run_starts(
+        out, costs = _run_starts(
             problem, opt, _starts(u0, multistart, seed), sel.data, int(max_steps)
         )
         t2 = time.perf_counter()
@@ -190,7 +199,7 @@ def fit(
     from .finish import make_result
 
     return make_result(
-        model=model, problem=problem, sel=sel, u=u, u0=u0, code=code, steps=steps, costs=costs,
+        model=model, problem=problem, sel=sel, out=out, u0=u0, costs=costs,
         x_start=x_start, fixed_idx=fixed_idx, loss=loss_obj, solver=solver_label(solver),
         throw=throw, name=samples.name, times=(t0, t1, t2), emit=lambda **kw: progress and progress("done", kw),
     )

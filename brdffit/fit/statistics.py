@@ -17,30 +17,16 @@ use ``log`` or ``relative``.
 
 from __future__ import annotations
 
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
 from .data import FitData
 from .losses import RELATIVE_FLOOR
-from .normal_form import gram
 from .problem import Problem
 
 
-@eqx.filter_jit
-def gauss_newton_at(problem: Problem, x_free, data: FitData, keep):
-    """``(r, JᵀJ)`` in physical units for the free scalars; columns outside ``keep`` zeroed."""
-
-    def residual(x):
-        return problem.residual_x(jnp.where(keep, x, x_free), data)
-
-    r, jtj, _ = gram(residual, x_free)
-    return r, jtj
-
-
-@eqx.filter_jit
 def metrics_at(problem: Problem, x_free, data: FitData):
-    """Error figures over the cells used (mask: non-zero weight), as a dict of scalars."""
+    """Error figures over the cells used (mask: non-zero weight): ``(dict, cost, m)``."""
     pred = problem.predict(x_free, data).astype(data.rgb.dtype)
     r = problem.residual_x(x_free, data).astype(data.rgb.dtype)
     mask = (data.sqrt_weight > 0).astype(data.rgb.dtype)
@@ -50,24 +36,29 @@ def metrics_at(problem: Problem, x_free, data: FitData):
     def rms(a):
         return jnp.sqrt(jnp.sum((a * mask) ** 2) / m)
 
-    log_diff = jnp.log1p(pred * data.cos_i) - jnp.log1p(data.rgb * data.cos_i)
+    ci, co = data.wi[:, 2:3], data.wo[:, 2:3]
+    log_diff = jnp.log1p(pred * ci) - jnp.log1p(data.rgb * ci)
     rel = jnp.abs(diff) / jnp.maximum(jnp.abs(data.rgb), RELATIVE_FLOOR)
     return {
         "rmse": jnp.sqrt(jnp.sum(r**2) / m),
-        "rmse_cosine": rms(diff * data.cos_i * data.cos_o),
+        "rmse_cosine": rms(diff * ci * co),
         "rmse_log": rms(log_diff),
         "rel_error": jnp.sum(rel * mask) / m,
     }, 0.5 * jnp.sum(r**2), m
 
 
-def covariance(jtj, sum_r2: float, m: float, keep: np.ndarray) -> tuple[np.ndarray, bool]:
-    """``s² (JᵀJ)⁻¹`` restricted to ``keep`` (zero elsewhere) and whether it was regular."""
-    jtj = np.asarray(jtj, float)
+def covariance(jtj_u, dxdu, sum_r2: float, m: float, keep: np.ndarray):
+    """``s² (J_xᵀJ_x)⁻¹`` over the ``keep`` scalars (zero elsewhere) and whether it is regular.
+
+    ``jtj_u`` is the Gauss–Newton matrix in the unconstrained coordinates at the optimum (what the
+    solver factored); ``J_x = J_u diag(∂x/∂u)⁻¹`` converts it to physical units.
+    """
+    jtj_u, dxdu = np.asarray(jtj_u, float), np.asarray(dxdu, float)
     k = np.flatnonzero(keep)
-    cov = np.zeros_like(jtj)
+    cov = np.zeros_like(jtj_u)
     if len(k) == 0:
         return cov, True
-    sub = jtj[np.ix_(k, k)]
+    sub = jtj_u[np.ix_(k, k)] / np.outer(dxdu[k], dxdu[k])
     dof = max(m - len(k), 1.0)
     scale = np.sqrt(np.clip(np.diag(sub), 1e-300, None))
     corr = sub / np.outer(scale, scale)
