@@ -17,11 +17,11 @@ class UnknownNameError(BrdffitError, KeyError):
     """A name (model, parameter, loss, solver, config key) that is not in its registry."""
 
     def __init__(self, kind: str, name: str, valid):
-        valid = sorted(valid)
+        valid = sorted(str(v) for v in valid)
         close = difflib.get_close_matches(str(name), valid, n=1)
         hint = f" Did you mean {close[0]!r}?" if close else ""
         self.kind, self.name, self.valid = kind, name, valid
-        super().__init__(f"unknown {kind} {name!r}; valid {kind}s: {', '.join(valid)}.{hint}")
+        super().__init__(f"unknown {kind} {name!r}; valid choices: {', '.join(valid)}.{hint}")
 
     def __str__(self) -> str:  # KeyError would otherwise quote the message
         return self.args[0]

@@ -119,7 +119,7 @@ def test_user_mistakes_are_one_line_and_exit_2(capsys, table, tmp_path):
     trunc.write_bytes(table.read_bytes()[:5000])
     _fails(capsys, ["info", str(trunc)], "truncated")
     _fails(capsys, ["fit", str(trunc), "--model", "ggx"], "truncated")
-    _fails(capsys, ["fit", t, "--model", "ggxx"], "unknown model 'ggxx'; valid models:")
+    _fails(capsys, ["fit", t, "--model", "ggxx"], "unknown model 'ggxx'; valid choices:")
     _fails(capsys, ["fit", t, "--model", "ggx", "--fix", "alpah=0.1"], "Did you mean 'alpha'?")
     _fails(capsys, ["fit", t, "--model", "ggx", "--init", "f0=1,2"], "give one number or three")
     _fails(capsys, ["synth", "--model", "ggx", "-p", "alpha=7", "-o", str(tmp_path / "x.binary")],

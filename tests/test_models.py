@@ -43,6 +43,14 @@ WHITE = {
     "aps-velvet": dict(diffuse=1.0, f0=1.0, sigma=0.5),
     "aps-satin": dict(diffuse=0.0, f0=1.0),
     "aps-vgroove": dict(diffuse=0.0, f0=1.0, tilt=0.35, sigma=0.15),
+    # Cloth (RTR 9.74): (1 - F) Lambert + F x (unmasked velvet lobe); F0 = 0.5 keeps both parts.
+    "cloth-velvet": dict(diffuse=1.0, f0=0.5, alpha=0.4, k_amp=4.0),
+    # The sheen lobe is added on top of Lambert (not energy-coupled), so rho is set to leave
+    # room for the lobe's albedo (~0.56 at 80 degrees for alpha = 0.4).
+    "cloth-sheen": dict(diffuse=0.4, sheen=1.0, alpha=0.4),
+    "ggx-ms": dict(diffuse=0.0, f0=1.0, alpha=0.8),
+    # Coupled diffuse (RTR 9.65) at rho = 1: total albedo exactly 1, a tight bound.
+    "ggx-coupled": dict(diffuse=1.0, f0=1.0, alpha=0.5),
 }
 
 
@@ -208,7 +216,7 @@ def test_no_nan_gradients_at_grazing_and_below_horizon(name):
 
 
 def test_unknown_model_and_parameter_errors_list_valid_names():
-    with pytest.raises(brdffit.UnknownNameError, match="valid models: .*ggx"):
+    with pytest.raises(brdffit.UnknownNameError, match="valid choices: .*ggx"):
         get_model("gxx")
     with pytest.raises(brdffit.UnknownNameError, match="alpha"):
         get_model("ggx").param("roughness")

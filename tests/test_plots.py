@@ -209,7 +209,7 @@ def test_figure_paths_names():
 
 
 def test_diagnostics_unknown_figure_name_lists_choices(lambert_table, tmp_path):
-    with pytest.raises(ValueError, match="unknown figure 'slices'.*valid figures: albedo, peaks"):
+    with pytest.raises(ValueError, match="unknown figure 'slices'.*valid choices: albedo, peaks"):
         diagnostics(lambert_table, path=tmp_path / "f.png", only=["slices"])
 
 
