@@ -72,7 +72,8 @@ def _check_run(nwalkers, nsteps, burn, thin, ndim):
 
 def _start_ball(center, scale, lo, hi, nwalkers, rng):
     """``center + BALL·scale·N(0,1)`` reflected at the prior box (a clipped start would put
-    walkers on one value and the stretch move could never spread them)."""
+    walkers on one value and the ensemble moves could never spread them). A centre outside a
+    user's narrower prior is first moved to the nearest point of the box."""
     p0 = center + BALL * scale * rng.standard_normal((nwalkers, len(center)))
     p0 = np.where(p0 < lo, 2 * lo - p0, p0)
     p0 = np.where(p0 > hi, 2 * hi - p0, p0)
@@ -139,8 +140,8 @@ def _posterior(result, samples, *, loss, cutoff, subsample, seed, bounds, noise,
 def _run_emcee(post, center, scale, nwalkers, nsteps, seed, moves):
     """Run the sampler; returns it and the seconds spent compiling and sampling."""
     rng = np.random.default_rng(seed)
-    box = post.prior
-    p0 = _start_ball(center, scale, np.asarray(box.lo), np.asarray(box.hi), nwalkers, rng)
+    lo, hi = np.asarray(post.prior.lo, float), np.asarray(post.prior.hi, float)
+    p0 = _start_ball(np.clip(center, lo, hi), scale, lo, hi, nwalkers, rng)
     log_prob = _batched(post, nwalkers // 2)
     t0 = time.perf_counter()
     lp0 = log_prob(p0)  # compiles the one program
@@ -154,7 +155,7 @@ def _run_emcee(post, center, scale, nwalkers, nsteps, seed, moves):
     sampler = emcee.EnsembleSampler(nwalkers, len(center), log_prob, vectorize=True,
                                     moves=moves)
     rstate = np.random.RandomState(int(rng.integers(2**32 - 1))).get_state()
-    sampler.run_mcmc(emcee.State(p0, log_prob=lp0), nsteps, rstate0=rstate, progress=False)
+    sampler.run_mcmc(emcee.State(p0, log_prob=lp0, random_state=rstate), nsteps, progress=False)
     return sampler, t1 - t0, time.perf_counter() - t1
 
 
