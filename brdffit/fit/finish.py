@@ -38,7 +38,7 @@ def _by_param(model, flat):
 
 
 def make_result(*, model, problem, sel, out, u0, costs, x_start, fixed_idx, loss, solver, throw,
-                name, times, emit):
+                name, times, emit, cov_kind="sandwich"):
     """Assemble the :class:`FitResult` (raises :class:`FitError` on failure if ``throw``)."""
     u, code = np.asarray(out["u"], float), int(out["code"])
     finite = bool(np.all(np.isfinite(u)) and np.isfinite(out["cost"]))
@@ -51,7 +51,9 @@ def make_result(*, model, problem, sel, out, u0, costs, x_start, fixed_idx, loss
     x_free = np.asarray(problem.physical(jnp.asarray(u)), float)
     bound = at_bound(u)
     cost = float(out["cost"]) if finite else float("nan")
-    cov_free, regular = covariance(out["jtj"], out["dxdu"], 2 * cost, float(out["m"]), bound == 0)
+    cov_free, regular = covariance(
+        out["jtj"], out["meat"], out["dxdu"], 2 * cost, float(out["m"]), bound == 0, cov_kind
+    )
     if finite and not regular and not message:
         message = "JᵀJ is singular at the optimum: some parameters are not identified by the data"
     x = np.asarray(problem.full_vector(jnp.asarray(x_free)), float)
@@ -72,7 +74,7 @@ def make_result(*, model, problem, sel, out, u0, costs, x_start, fixed_idx, loss
         starts=[float(c) for c in costs], loss=loss.label, solver=solver,
         n_cells=sel.n_used, n_total=sel.n_total, init=_by_param(model, x_start),
         wall_time=t3 - t0, timings={"prepare": t1 - t0, "solve": t2 - t1, "finish": t3 - t2},
-        table=name,
+        table=name, covariance=cov_kind,
     )
     emit(success=success, cost=result.cost)
     return result

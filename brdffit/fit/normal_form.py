@@ -51,12 +51,14 @@ def chunked(data, chunks: int):
     return jax.tree.map(lambda a: a.reshape((chunks, a.shape[0] // chunks) + a.shape[1:]), data)
 
 
-def gram(columns: Callable, u, data, chunks: int = 1):
+def gram(columns: Callable, u, data, chunks: int = 1, meat: bool = False):
     """``(Σ r², JᵀJ, Jᵀr)`` from ``columns(u, data_chunk) -> (r, J)``, chunk by chunk.
 
     ``J`` comes as ``p`` rows of length ``m``. The cells are processed in ``chunks`` equal
     blocks (a ``lax.scan``), so the Jacobian rows of one block stay in cache and the whole
     Jacobian is never in memory. Rows may be float32; the sums are float64 when x64 is enabled.
+    With ``meat=True`` a fourth entry ``Jᵀ diag(r²) J`` is accumulated too (for the sandwich
+    covariance, :mod:`brdffit.fit.statistics`).
     """
     acc = jnp.promote_types(u.dtype, jnp.float32)
     p = u.shape[0]
@@ -64,10 +66,14 @@ def gram(columns: Callable, u, data, chunks: int = 1):
     def block(carry, chunk):
         r, cols = columns(u, chunk)
         r, cols = r.astype(acc), cols.astype(acc)
-        s, jtj, jtr = carry
-        return (s + jnp.sum(r * r), jtj + cols @ cols.T, jtr + cols @ r), None
+        out = (carry[0] + jnp.sum(r * r), carry[1] + cols @ cols.T, carry[2] + cols @ r)
+        if meat:
+            cr = cols * r
+            out = out + (carry[3] + cr @ cr.T,)
+        return out, None
 
     init = (jnp.zeros((), acc), jnp.zeros((p, p), acc), jnp.zeros((p,), acc))
+    init = init + ((jnp.zeros((p, p), acc),) if meat else ())
     if chunks == 1:
         return block(init, data)[0]
     return jax.lax.scan(block, init, chunked(data, chunks))[0]

@@ -84,7 +84,7 @@ class FitResult:
         loss, solver: what was used. n_cells: cells used; n_total: cells in the input.
         init: the starting parameters of the best start. wall_time: seconds for the whole call;
         timings: a breakdown (``prepare``, ``solve``, ``finish``), seconds.
-        table: the input's name.
+        table: the input's name. covariance: ``"sandwich"`` or ``"gn"``, how ``cov`` was estimated.
     """
 
     model_name: str
@@ -111,6 +111,7 @@ class FitResult:
     wall_time: float
     timings: dict
     table: str = ""
+    covariance: str = "sandwich"
 
     # -- evaluation -----------------------------------------------------------------------------
     @property

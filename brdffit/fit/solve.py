@@ -16,12 +16,12 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from ..errors import FitError
+from ..errors import FitError, UnknownNameError
 from ..models.registry import get_model
 from . import init as init_mod
 from .data import check_enough, select
 from .losses import DEFAULT_LOSS, get_loss
-from .normal_form import normal_form
+from .normal_form import gram, normal_form
 from .problem import Problem
 from .statistics import metrics_at
 from .setup import assign, check_within, flat_bounds, flat_log
@@ -52,11 +52,11 @@ def _solve(problem: Problem, solver, u0, data, floor, max_steps: int):
     """One optimistix solve, then the Gauss–Newton matrix and the metrics at its end point."""
     fn = normal_form(problem.columns, problem.chunks)
     sol = optx.least_squares(fn, solver, u0, args=(data, floor), max_steps=max_steps, throw=False)
-    jt = sol.state.f_info.jac.as_matrix()  # J̃ at sol.value: J̃ᵀJ̃ = JᵀJ (normal_form)
+    _, jtj, _, meat = gram(problem.columns, sol.value, data, problem.chunks, meat=True)
     x, dxdu = jax.jvp(problem.physical, (sol.value,), (jnp.ones_like(sol.value),))
     metrics, cost, m = metrics_at(problem, x, data)
     return dict(
-        u=sol.value, code=sol.result._value, steps=sol.stats["num_steps"], jtj=jt.T @ jt,
+        u=sol.value, code=sol.result._value, steps=sol.stats["num_steps"], jtj=jtj, meat=meat,
         dxdu=dxdu, metrics=metrics, cost=cost.astype(u0.dtype), m=m,
     )
 
@@ -141,6 +141,7 @@ def fit(
     throw: bool = True,
     progress=None,
     precision: str | None = None,
+    covariance: str = "sandwich",
 ):
     """Fit ``model`` to ``table`` by nonlinear least squares; returns a :class:`FitResult`.
 
@@ -168,7 +169,13 @@ def fit(
             ``start-done``, ``done``.
         precision: ``"float64"`` or ``"float32"`` model evaluation (products are accumulated in
             float64 either way when x64 is enabled). Defaults to float64 when x64 is enabled.
+        covariance: ``"sandwich"`` (default, robust to heteroscedastic residuals) or ``"gn"``
+            (classical ``s² (JᵀJ)⁻¹``); see :mod:`brdffit.fit.statistics`.
     """
+    if covariance not in ("sandwich", "gn"):
+        raise UnknownNameError("covariance", str(covariance), ["sandwich", "gn"])
+    if precision not in (None, "float32", "float64"):
+        raise UnknownNameError("precision", str(precision), ["float32", "float64"])
     t0 = time.perf_counter()
     model, loss_obj = get_model(model), get_loss(loss)
     dtype = precision or _default_dtype()
@@ -201,5 +208,6 @@ def fit(
     return make_result(
         model=model, problem=problem, sel=sel, out=out, u0=u0, costs=costs,
         x_start=x_start, fixed_idx=fixed_idx, loss=loss_obj, solver=solver_label(solver),
-        throw=throw, name=samples.name, times=(t0, t1, t2), emit=lambda **kw: progress and progress("done", kw),
+        throw=throw, name=samples.name, times=(t0, t1, t2), cov_kind=covariance,
+        emit=lambda **kw: progress and progress("done", kw),
     )

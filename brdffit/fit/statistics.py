@@ -1,18 +1,27 @@
 r"""Uncertainty and error figures at the optimum.
 
-Covariance (Gauss–Newton approximation, in physical units): with ``J`` the Jacobian of the
-residual with respect to the free physical scalars that are *not* at a bound,
+Both covariance estimates use the Gauss–Newton approximation :math:`H \approx J^\top J` at the
+optimum, with ``J`` the Jacobian of the residual with respect to the free physical scalars that
+are *not* at a bound (``m`` residuals with non-zero weight, ``p`` such scalars):
 
-.. math::
+* ``"sandwich"`` (the default; Huber 1967, White 1980, with the ``m/(m-p)`` correction):
 
-    \mathrm{Cov}(\hat x) \approx s^2 (J^\top J)^{-1}, \qquad s^2 = \frac{\sum r^2}{m - p},
+  .. math:: \mathrm{Cov}(\hat x) \approx \frac{m}{m-p}\,(J^\top J)^{-1}
+            \Bigl(\sum_i r_i^2\, J_i^\top J_i\Bigr)(J^\top J)^{-1}
 
-``m`` the number of residuals with non-zero weight and ``p`` the number of those scalars. This is
-the delta method applied to the unconstrained fit: ``J_x = J_u (∂x/∂u)^{-1}``, so the transform
-cancels and ``J`` is differentiated in physical units directly. Scalars at a bound are held
-fixed (their ``∂x/∂u`` vanishes), as scipy's ``least_squares`` does with its active set.
-The estimate assumes homoscedastic residuals under the chosen loss: for multiplicative noise
-use ``log`` or ``relative``.
+* ``"gn"`` (the classical estimate of ``scipy.optimize.curve_fit``):
+
+  .. math:: \mathrm{Cov}(\hat x) \approx s^2 (J^\top J)^{-1}, \qquad s^2 = \frac{\sum r^2}{m-p}
+
+The classical estimate assumes every residual has the same variance. Under the default ``log``
+loss, multiplicative noise is *not* homoscedastic (a residual's spread is ``σ ρcosθ/(1+ρcosθ)``:
+``σ`` on the peak, ``~0.01σ`` on a dark diffuse floor); measured with 2% noise on a ``ggx`` table
+(12 seeds, 5,000 cells), ``"gn"`` gave ``|z|`` up to 4.8 for ``alpha`` while the sandwich gave
+root-mean-square ``z`` of 0.5–1.2 for every parameter. Hence the sandwich by default.
+
+Delta method: ``J_x = J_u (∂x/∂u)⁻¹``, so the bounds transform cancels and the covariance is in
+physical units. Scalars at a bound are held fixed (their ``∂x/∂u`` vanishes), as scipy's
+``least_squares`` does with its active set.
 """
 
 from __future__ import annotations
@@ -47,23 +56,27 @@ def metrics_at(problem: Problem, x_free, data: FitData):
     }, 0.5 * jnp.sum(r**2), m
 
 
-def covariance(jtj_u, dxdu, sum_r2: float, m: float, keep: np.ndarray):
-    """``s² (J_xᵀJ_x)⁻¹`` over the ``keep`` scalars (zero elsewhere) and whether it is regular.
+def covariance(jtj_u, meat_u, dxdu, sum_r2: float, m: float, keep: np.ndarray, kind: str):
+    """Covariance over the ``keep`` scalars (zero elsewhere), and whether ``JᵀJ`` is regular.
 
-    ``jtj_u`` is the Gauss–Newton matrix in the unconstrained coordinates at the optimum (what the
-    solver factored); ``J_x = J_u diag(∂x/∂u)⁻¹`` converts it to physical units.
+    ``jtj_u``, ``meat_u`` are ``JᵀJ`` and ``Jᵀdiag(r²)J`` in the unconstrained coordinates at the
+    optimum; ``J_x = J_u diag(∂x/∂u)⁻¹`` converts them to physical units. ``kind`` is
+    ``"sandwich"`` or ``"gn"`` (module docstring).
     """
-    jtj_u, dxdu = np.asarray(jtj_u, float), np.asarray(dxdu, float)
+    jtj_u, meat_u, dxdu = (np.asarray(a, float) for a in (jtj_u, meat_u, dxdu))
     k = np.flatnonzero(keep)
     cov = np.zeros_like(jtj_u)
     if len(k) == 0:
         return cov, True
-    sub = jtj_u[np.ix_(k, k)] / np.outer(dxdu[k], dxdu[k])
-    dof = max(m - len(k), 1.0)
-    scale = np.sqrt(np.clip(np.diag(sub), 1e-300, None))
-    corr = sub / np.outer(scale, scale)
+    d = np.outer(dxdu[k], dxdu[k])
+    bread, meat = jtj_u[np.ix_(k, k)] / d, meat_u[np.ix_(k, k)] / d
+    scale = np.sqrt(np.clip(np.diag(bread), 1e-300, None))
+    corr = bread / np.outer(scale, scale)
     w = np.linalg.eigvalsh(corr)
     regular = bool(w.min() > 1e-12 * max(w.max(), 1e-300))
     inv = np.linalg.pinv(corr, rcond=1e-12, hermitian=True) / np.outer(scale, scale)
-    cov[np.ix_(k, k)] = inv * (sum_r2 / dof)
+    if kind == "gn":
+        cov[np.ix_(k, k)] = inv * (sum_r2 / max(m - len(k), 1.0))
+    else:
+        cov[np.ix_(k, k)] = inv @ meat @ inv * (m / max(m - len(k), 1.0))
     return cov, regular
