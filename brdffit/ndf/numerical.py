@@ -53,6 +53,7 @@ COT_THETA_MAX = 1e4
 #: Defaults: table nodes over ``θ`` and Gauss–Legendre nodes per ``θm`` panel.
 N_THETA = 256
 N_QUAD = 32
+N_PHI = 64
 
 
 def isotropic(D_of_cos):  # noqa: N803
@@ -100,16 +101,15 @@ def _y_max(scale):
 
 def _breakpoints(kink, scale):
     """Panel ends in ``y``: 0, the peak (``tan θm = 3·scale``), 45°, the kink, ``y_max``."""
-    y_max = jnp.broadcast_to(_y_max(scale), kink.shape)
-    inner = jnp.stack(
-        [
-            jnp.broadcast_to(jnp.arcsinh(jnp.asarray(3.0, kink.dtype)), kink.shape),
-            jnp.broadcast_to(jnp.minimum(jnp.arcsinh(1.0 / scale), y_max), kink.shape),
-            jnp.minimum(kink, y_max),
-        ],
-        axis=-1,
-    )
-    return jnp.concatenate([jnp.zeros_like(kink)[..., None], jnp.sort(inner, axis=-1), y_max[..., None]], -1)
+    y_max = _y_max(scale)
+    y1 = jnp.arcsinh(jnp.asarray(3.0, kink.dtype))
+    y2 = jnp.minimum(jnp.arcsinh(1.0 / scale), y_max)
+    lo, hi = jnp.minimum(y1, y2), jnp.maximum(y1, y2)  # a sorting network for (lo, hi, kink)
+    k = jnp.minimum(kink, y_max)
+    b1, b3 = jnp.minimum(lo, k), jnp.maximum(hi, k)
+    b2 = jnp.clip(k, lo, hi)
+    full = lambda v: jnp.broadcast_to(v, kink.shape)  # noqa: E731
+    return jnp.stack([jnp.zeros_like(kink), b1, b2, b3, full(y_max)], axis=-1)
 
 
 def _iso_projected_area_xi(D, xi, scale, n_quad):  # noqa: N803
@@ -119,17 +119,61 @@ def _iso_projected_area_xi(D, xi, scale, n_quad):  # noqa: N803
     inv_r = jax.lax.rsqrt(1.0 + a * a)
     cos_t, sin_t = a * inv_r, inv_r
     b = _breakpoints(xi, scale)
-    total = jnp.zeros_like(xi)
-    for i in range(b.shape[-1] - 1):
-        y, wy = _panel(b[..., i], b[..., i + 1], x, w)
-        total = total + _iso_line(D, cos_t, sin_t, y, wy, scale)
-    return total
+    y, wy = _panel(b[..., :-1], b[..., 1:], x, w)  # (..., 4 panels, n_quad)
+    shape = y.shape[:-2] + (-1,)
+    return _iso_line(D, cos_t, sin_t, y.reshape(shape), wy.reshape(shape), scale)
 
 
 def projected_area_normal(D, scale=1.0, *, n_quad=N_QUAD, dtype=None):  # noqa: N803
     """``g(n) = ∫ D(m)(n·m) dm`` (1 for a normalised NDF, RTR eq. 9.21; APS's ``⟨⟨hn⟩⟩``)."""
     scale = jnp.asarray(scale, dtype)
     return _iso_projected_area_xi(D, _y_max(scale), scale, n_quad)
+
+
+def _azimuth_nodes(w, sx, sy, n_phi):
+    """Stretched azimuths ``φ'`` and weights: GL on the two halves between the zeros of
+    ``ω_x s_x cos φ' + ω_y s_y sin φ'`` (where the clip kink leaves through 90°)."""
+    a, b = w[..., 0] * sx, w[..., 1] * sy
+    ok = a * a + b * b > 1e-30
+    phi0 = jnp.where(ok, jnp.arctan2(jnp.where(ok, -a, 0.0), jnp.where(ok, b, 1.0)), 0.0)
+    x, wq = _gauss_legendre01(n_phi // 2, w.dtype)
+    half = jnp.concatenate([x, x + 1.0]) * jnp.pi
+    return phi0[..., None] + half, jnp.broadcast_to(jnp.concatenate([wq, wq]) * jnp.pi, half.shape)
+
+
+def projected_area(D, w, scale=1.0, *, n_phi=N_PHI, n_quad=N_QUAD):  # noqa: N803
+    r"""``g(ω) = ∫ D(m)(ω·m)⁺ dm`` for any ``D(m)``, anisotropic too, at each ``w`` (APS eq. 18).
+
+    Direct quadrature, no table, over the microfacet slopes ``(p, q) = sinh(y)·(s_x cos φ',
+    s_y sin φ')`` (``m ∝ (p, q, 1)``, ``dm = s_x s_y sinh y cosh y cos³θm dy dφ'``): Gauss–Legendre
+    over stretched azimuths ``φ'`` in two halves split at the two ``φ'`` whose line meets
+    the clip circle ``ω·m = 0`` at the horizon (``n_phi/2`` Gauss–Legendre nodes each) and, along each, Gauss–Legendre panels in ``y``
+    split where ``(ω·m)⁺`` clips. ``scale`` is ``s`` or ``(s_x, s_y)``: the slope widths of the
+    peak (``α_x, α_y`` for GGX/Beckmann-like NDFs), so anisotropic peaks are round in ``(y, φ')``.
+    Costs ``4 · n_phi · n_quad`` evaluations of ``D`` per direction: meant for building tables
+    over (θ, φ), not for every sample of a fit. ``g(n)`` is ``projected_area(D, [0, 0, 1])``;
+    then ``G1 = (ω·n) g(n)/g(ω)`` (APS eq. 25).
+    """
+    sx, sy = jnp.broadcast_to(jnp.asarray(scale, w.dtype), (2,))
+    fi, wfi = _azimuth_nodes(w, sx, sy, n_phi)  # φ' (..., n_phi), split where ω·m clips at 90°
+    ux, uy = sx * jnp.cos(fi), sy * jnp.sin(fi)  # slope direction per unit sinh(y)
+    lin = w[..., 0, None] * ux + w[..., 1, None] * uy  # (..., n_phi): ω·(p, q, 0)/sinh y
+    wz = jnp.abs(w[..., 2, None])
+    r_kink = safe_div(wz, jnp.maximum(-lin, 0.0), fill=1e30)
+    kink = jnp.arcsinh(jnp.minimum(r_kink, 1e30))
+    x, wq = _gauss_legendre01(n_quad, w.dtype)
+    b = _breakpoints(kink, jnp.sqrt(sx * sy))
+    y, wy = _panel(b[..., :-1], b[..., 1:], x, wq)  # (..., n_phi, 4 panels, n_quad)
+    shape = y.shape[:-2] + (-1,)
+    y, wy = y.reshape(shape), wy.reshape(shape)
+    r = jnp.sinh(y)
+    p, q = r * ux[..., None], r * uy[..., None]
+    cm = jax.lax.rsqrt(1.0 + p * p + q * q)
+    m = jnp.stack([p * cm, q * cm, cm], axis=-1)
+    wdotm = (lin[..., None] * r + wz[..., None]) * cm
+    jac = sx * sy * r * jnp.cosh(y) * cm**3
+    total = jnp.sum(D(m) * jnp.maximum(wdotm, 0.0) * jac * wy, axis=-1)
+    return jnp.sum(total * wfi, axis=-1)
 
 
 class ProjectedAreaTable(eqx.Module):
