@@ -12,6 +12,7 @@ yourself for float64 (the CLI and the tests do).
 from .errors import BrdffitError, ConfigError, FitError, UnknownNameError
 from .models import Model, Param, available_models, get_model, register
 from .fit import FitResult, fit, get_loss
+from .posterior import PosteriorResult, sample_posterior
 
 __version__ = "0.1.0"
 
@@ -20,6 +21,7 @@ __all__ = [
     "ConfigError",
     "FitError",
     "FitResult",
+    "PosteriorResult",
     "Model",
     "Param",
     "UnknownNameError",
@@ -28,4 +30,5 @@ __all__ = [
     "get_loss",
     "get_model",
     "register",
+    "sample_posterior",
 ]

@@ -217,3 +217,36 @@ def test_outputs_json_npz_corner(ggx_table, ggx_fit, tmp_path):
     assert (tmp_path / "corner.png").stat().st_size > 20_000
     assert len(fig.axes) == 49
     assert isinstance(post, PosteriorResult) and "alpha" in post.summary()
+
+
+# -- the command line -----------------------------------------------------------------------------
+def test_cli_fit_mcmc_end_to_end(ggx_table, tmp_path, monkeypatch, capsys):
+    table = tmp_path / "t.binary"
+    write_merl(table, ggx_table)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    args = ["fit", table, "--model", "ggx", "--cutoff", 60, "--subsample", 1000, "--mcmc",
+            "--walkers", 16, "--steps", 120, "--mcmc-subsample", 400, "--seed", 3,
+            "--out", "r.json", "--plot", "fig.png"]
+    run = subprocess.run([sys.executable, str(ROOT / "cli.py"), *map(str, args)], cwd=tmp_path,
+                         capture_output=True, text=True, env=env, timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert "ggx posterior of t" in run.stdout and "p16" in run.stdout
+    assert "brdffit fit: warning: the chain is too short" in run.stderr  # 120 steps < 50 τ
+    result = json.loads((tmp_path / "r.json").read_text())
+    post = result["posterior"]
+    assert result["success"] and post["settings"]["nsteps"] == 120
+    assert set(post["percentiles"]) == set(result["free"])
+    for name, (p16, p50, p84) in post["percentiles"].items():
+        assert p16 < p50 < p84
+    with np.load(tmp_path / "r-chain.npz") as z:
+        assert z["chain"].shape == (120, 16, 7)
+    assert (tmp_path / "fig-corner.png").stat().st_size > 20_000
+
+    from brdffit.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    capsys.readouterr()
+    assert main(["fit", str(table), "--model", "ggx", "--mcmc", "--chain", "r-chain.npz"]) == 2
+    assert "r-chain.npz: already exists; pass --force" in capsys.readouterr().err
+    assert main(["fit", str(table), "--model", "ggx", "--walkers", "8"]) == 2
+    assert "--walkers only apply to posterior sampling: add --mcmc" in capsys.readouterr().err

@@ -65,6 +65,9 @@ def add_parser(sub, parents) -> None:
                    help="write the fitted model rendered over the MERL grid")
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    from ..posterior.cli_support import add_arguments as add_mcmc_arguments
+
+    add_mcmc_arguments(p)
     p.set_defaults(run=run)
 
 
@@ -110,15 +113,20 @@ def run(args) -> int:
 
     model, options = options_from(args)
     out, plot, table = (args.out, args.plot, args.table)
-    check_outputs([out, table] + _plot_paths(plot), args.force)
+    from ..posterior import cli_support as mcmc
+
+    mcmc_paths = [p for p in mcmc.output_paths(args).values() if p]
+    check_outputs([out, table] + _plot_paths(plot) + mcmc_paths, args.force)
     data = read_input(args.file)
     progress = Progress(quiet=args.quiet)
     progress(f"fitting {model.name} to {args.file}")
     result = fit(data, model, **options.fit_kwargs(), throw=False,
                  progress=progress if progress.enabled else None)
-    print(result.to_json() if args.json else result.summary())
+    post = _posterior(data, result, args, options, progress, mcmc)
+    text = mcmc.combined_json(result, post) if post else result.to_json()
+    print(text if args.json else "\n".join([result.summary()] + ([post.summary()] if post else [])))
     if out:
-        write_text(out, result.to_json() + "\n")
+        write_text(out, text + "\n")
     if table:
         _write_table(result, table, progress)
     if plot:
@@ -131,6 +139,21 @@ def run(args) -> int:
               f"were written and marked success=false", file=sys.stderr)
         return 1
     return 0
+
+
+def _posterior(data, result, args, options, progress, mcmc):
+    """``--mcmc``: emcee around the converged fit (see :mod:`brdffit.posterior.cli_support`)."""
+    if not args.mcmc:
+        return None
+    if not result.success:
+        print("brdffit fit: warning: --mcmc skipped: the least-squares fit did not converge, "
+              "so there is no optimum to start the walkers from", file=sys.stderr)
+        return None
+    progress("sampling the posterior with emcee")
+    post, _files, notes = mcmc.run_mcmc(data, result, args, options, atomic_write)
+    for note in notes:
+        print(f"brdffit fit: warning: {note}", file=sys.stderr)
+    return post
 
 
 def _plot_paths(plot):
