@@ -42,8 +42,8 @@ from .result import PERCENTILES, PosteriorResult
 
 DEFAULT_SUBSAMPLE = Subsample(2000, "stratified")
 DEFAULT_WALKERS = 32
-DEFAULT_STEPS = 2000
-DEFAULT_BURN = 400
+DEFAULT_STEPS = 2500
+DEFAULT_BURN = 500
 
 
 def default_moves():
