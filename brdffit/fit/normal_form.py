@@ -96,26 +96,32 @@ def normal_form(columns: Callable, chunks: int = 1) -> Callable:
     ``columns(u, data)`` returns the flat residual and its Jacobian rows ``(r, J)`` for a block of
     cells (``data`` is split into ``chunks`` blocks, see :func:`gram`). ``args = (data, floor)``:
     ``floor`` is a constant added to the cost ``½‖r̃‖²`` (through ``c``), see
-    :meth:`brdffit.fit.problem.Problem.cost_floor`; it changes no step, gradient or ratio. The
-    returned function is only meant to be differentiated once, to first order, by the solver
-    (its ``jvp`` is ``J̃ δ``).
+    :meth:`brdffit.fit.problem.Problem.cost_floor`; it changes no step, gradient or ratio.
+
+    ``fn`` returns ``(r̃, aux)`` (use ``has_aux=True``) with ``aux = {"jtj", "meat"}``: ``JᵀJ``
+    and ``Jᵀdiag(r²)J`` at ``u``, accumulated in the same pass, for the covariance at the
+    optimum. ``fn`` is only meant to be differentiated once, to first order, by the solver (its
+    ``jvp`` is ``J̃ δ``; ``aux`` has zero tangent).
     """
 
     def _both(u, args):
         data, floor = args
-        sum_r2, jtj, jtr = gram(columns, u, data, chunks)
-        return compress(sum_r2 + 2.0 * floor, jtj, jtr)
+        sum_r2, jtj, jtr, meat = gram(columns, u, data, chunks, meat=True)
+        rt, rmat = compress(sum_r2 + 2.0 * floor, jtj, jtr)
+        return rt, rmat, {"jtj": jtj, "meat": meat}
 
     @jax.custom_jvp
     def fn(u, args):
-        return _both(u, args)[0]
+        rt, _, aux = _both(u, args)
+        return rt, aux
 
     @fn.defjvp
     def _fn_jvp(primals, tangents):
         u, args = primals
         du = tangents[0]
-        rt, rmat = _both(u, args)
+        rt, rmat, aux = _both(u, args)
         dr = rmat @ du.astype(rmat.dtype)
-        return rt, jnp.concatenate([dr, jnp.zeros((1,), dr.dtype)]).astype(rt.dtype)
+        drt = jnp.concatenate([dr, jnp.zeros((1,), dr.dtype)]).astype(rt.dtype)
+        return (rt, aux), (drt, jax.tree.map(jnp.zeros_like, aux))
 
     return fn

@@ -21,12 +21,12 @@ from ..models.registry import get_model
 from . import init as init_mod
 from .data import check_enough, select
 from .losses import DEFAULT_LOSS, get_loss
-from .normal_form import gram, normal_form
+from .normal_form import normal_form
 from .problem import Problem
 from .statistics import metrics_at
 from .setup import assign, check_within, flat_bounds, flat_log
 from .solvers import COST_NOISE, DEFAULT_SOLVER, make_solver, solver_label
-from .transforms import bounds_in_s, to_unconstrained
+from .transforms import START_MARGIN, bounds_in_s, to_unconstrained
 
 _PROGRESS = {"fn": None, "start": 0, "floor": 0.0}
 
@@ -51,12 +51,15 @@ def _verbose_hook(**kwargs):
 def _solve(problem: Problem, solver, u0, data, floor, max_steps: int):
     """One optimistix solve, then the Gauss–Newton matrix and the metrics at its end point."""
     fn = normal_form(problem.columns, problem.chunks)
-    sol = optx.least_squares(fn, solver, u0, args=(data, floor), max_steps=max_steps, throw=False)
-    _, jtj, _, meat = gram(problem.columns, sol.value, data, problem.chunks, meat=True)
+    sol = optx.least_squares(
+        fn, solver, u0, args=(data, floor), max_steps=max_steps, throw=False, has_aux=True
+    )
+    aux = sol.state.aux  # JᵀJ and Jᵀdiag(r²)J at sol.value (the last accepted point)
     x, dxdu = jax.jvp(problem.physical, (sol.value,), (jnp.ones_like(sol.value),))
     metrics, cost, m = metrics_at(problem, x, data)
     return dict(
-        u=sol.value, code=sol.result._value, steps=sol.stats["num_steps"], jtj=jtj, meat=meat,
+        u=sol.value, code=sol.result._value, steps=sol.stats["num_steps"], jtj=aux["jtj"],
+        meat=aux["meat"],
         dxdu=dxdu, metrics=metrics, cost=cost.astype(u0.dtype), m=m,
     )
 
@@ -192,7 +195,7 @@ def fit(
         model, loss_obj, tuple(free), tuple(bool(b) for b in log[free]), dtype, sel.chunks,
         jnp.asarray(x_start), jnp.asarray(slo[free]), jnp.asarray(shi[free]),
     )
-    u0 = to_unconstrained(x_start[free], slo[free], shi[free], log[free])
+    u0 = to_unconstrained(x_start[free], slo[free], shi[free], log[free], START_MARGIN)
     _PROGRESS["fn"] = progress
     try:
         _emit("setup", n_cells=sel.n_used, n_free=len(free), model=model.name)

@@ -28,8 +28,10 @@ import numpy as np
 U_CLIP = 30.0
 #: A parameter is "at its bound" when ``σ(u)`` is within this of 0 or 1.
 AT_BOUND_TOL = 1e-6
-#: Starting values exactly at a bound are nudged this far inside (in ``σ`` units).
-START_NUDGE = 1e-6
+#: Starting values are moved at least this far inside their bounds (a fraction of the range in
+#: the ``s`` coordinate). A start at ``σ(u) = 1e-6`` would have ``∂x/∂u ≈ 1e-6``: the solver could
+#: hardly move it, so a default of 0 (Disney's ``sheen``) would never leave its bound.
+START_MARGIN = 0.01
 
 
 def bounds_in_s(lo, hi, log):
@@ -47,11 +49,13 @@ def to_physical(u, slo, shi, log):
     return jnp.where(log, jnp.exp(jnp.where(log, s, 0.0)), s)
 
 
-def to_unconstrained(x, slo, shi, log):
-    """``u(x)``: physical → unconstrained (NumPy). Values at a bound are nudged inside."""
+def to_unconstrained(x, slo, shi, log, margin: float = 0.0):
+    """``u(x)``: physical → unconstrained (NumPy). Values within ``margin`` (a fraction of the
+    range, at least 1e-12) of a bound are moved to that distance first."""
     x = np.asarray(x, float)
     s = np.where(log, np.log(np.where(log, np.maximum(x, 1e-300), 1.0)), x)
-    p = np.clip((s - slo) / (shi - slo), START_NUDGE, 1.0 - START_NUDGE)
+    m = max(float(margin), 1e-12)
+    p = np.clip((s - slo) / (shi - slo), m, 1.0 - m)
     return np.log(p) - np.log1p(-p)
 
 
