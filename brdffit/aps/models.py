@@ -52,7 +52,9 @@ SIGMA_BOUNDS = (0.08, 1.0)
 #: tables (``tests/test_aps_tables.py``): ``g(k)`` within ~0.5 % above 10° elevation and a few
 #: % at grazing for σ = 0.1; errors shrink quickly for broader distributions.
 ISO_RESOLUTION = Resolution()
-ANISO_RESOLUTION = Resolution(n_u=17, n_phi=24, n_psi=16, n_beta=8, n_theta=40, n_phi_q=64)
+ANISO_RESOLUTION = Resolution(
+    n_u=17, n_phi=24, n_psi=16, n_beta=8, n_theta=40, n_phi_q=64, r_grid=(11, 16), r_quad=(32, 48)
+)
 
 
 def _dt(p, *names):

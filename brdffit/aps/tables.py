@@ -45,8 +45,10 @@ class Resolution:
         n_u: table nodes in ``u = √(cos θ_k)`` (odd, ≥ 3).
         n_phi: table nodes in ``φ_k`` (anisotropic distributions only).
         n_psi, n_beta: lune rule: Gauss–Legendre nodes in ``ψ`` and per half-range of ``β``.
-        n_theta, n_phi_q: polar rule (moments, reflectance R(k)): GL nodes in ``θ``, trapezoid
-            nodes in ``φ``.
+        n_theta, n_phi_q: polar rule of the mean normal (which uses twice these per axis).
+        r_grid: ``(n_u, n_phi)`` of the reflectance table ``R(k)`` (only the diffuse term reads
+            it; ``R`` is smoother than ``g``); ``n_phi`` is 1 for isotropic distributions.
+        r_quad: ``(n_theta, n_phi)`` of the polar rule over half vectors for ``R(k)``.
     """
 
     n_u: int = 33
@@ -55,14 +57,17 @@ class Resolution:
     n_beta: int = 12
     n_theta: int = 48
     n_phi_q: int = 96
+    r_grid: tuple = (17, 24)
+    r_quad: tuple = (48, 64)
 
     def __post_init__(self):
-        if self.n_u < 3 or self.n_u % 2 == 0:
-            raise ValueError(f"Resolution.n_u must be odd and >= 3 (Simpson's rule); got {self.n_u}")
+        for name, n in (("n_u", self.n_u), ("r_grid[0]", self.r_grid[0])):
+            if n < 3 or n % 2 == 0:
+                raise ValueError(f"Resolution.{name} must be odd and >= 3 (Simpson's rule); got {n}")
 
 
 #: Coarse settings for tests and quick looks (isotropic tables ~1e-3 relative accuracy).
-COARSE = Resolution(n_u=17, n_phi=16, n_psi=16, n_beta=8, n_theta=32, n_phi_q=48)
+COARSE = Resolution(n_u=17, n_phi=16, n_psi=16, n_beta=8, n_theta=32, n_phi_q=48, r_grid=(9, 8), r_quad=(32, 48))
 
 
 def table_angles(n_u: int, n_phi: int):
