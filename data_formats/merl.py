@@ -22,10 +22,10 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
-import tempfile
 
 import numpy as np
 
+from ._atomic import atomic_write
 from .rusinkiewicz import dirs_from_half_diff, fold_phi_d, half_diff_from_dirs
 from .samples import SampleSet
 
@@ -567,20 +567,12 @@ def write_merl(path, table: MERLTable) -> None:
     body = np.ascontiguousarray(np.moveaxis(_stored_values(table.rgb, table.valid), -1, 0),
                                 dtype="<f8")
     header = np.asarray(table.shape, dtype="<i4").tobytes()
-    folder = os.path.dirname(os.path.abspath(p))
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + os.path.basename(p) + ".", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(header)
-            body.tofile(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, os.stat(p).st_mode & 0o7777 if os.path.isfile(p) else 0o644)
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+
+    def write(f):
+        f.write(header)
+        body.tofile(f)
+
+    atomic_write(p, write)
 
 
 # --------------------------------------------------------------------------------------------

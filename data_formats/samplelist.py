@@ -39,12 +39,11 @@ the colours and, with ``angles=False``, to within renormalization for the vector
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from ._atomic import atomic_write
 from .samples import SampleSet
 
 ANGLE_COLUMNS = ("theta_i", "phi_i", "theta_o", "phi_o")
@@ -296,19 +295,13 @@ def write_samples(path, samples: SampleSet, *, angles: bool = True) -> Path:
     """
     path = _check_path(path)
     columns, data = _columns_of(samples.to_samples(), angles)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            if path.suffix.lower() == ".csv":
-                fh.write((",".join(columns) + "\n").encode())
-                np.savetxt(fh, data, delimiter=",", fmt="%.17g")
-            else:
-                np.savez(fh, **{c: data[:, k] for k, c in enumerate(columns)})
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual mode
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+
+    def write(fh):
+        if path.suffix.lower() == ".csv":
+            fh.write((",".join(columns) + "\n").encode())
+            np.savetxt(fh, data, delimiter=",", fmt="%.17g")
+        else:
+            np.savez(fh, **{c: data[:, k] for k, c in enumerate(columns)})
+
+    atomic_write(path, write)
     return path

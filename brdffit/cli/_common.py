@@ -5,12 +5,12 @@ Nothing here imports JAX; the commands import it (and the fitter) only when they
 
 from __future__ import annotations
 
-import os
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
+
+from data_formats._atomic import atomic_path
 
 from ..errors import BrdffitError
 
@@ -112,19 +112,9 @@ def atomic_write(path, write: Callable[[Path], None]) -> Path:
     The temporary name keeps the suffix (writers such as matplotlib pick the format by it). On
     any failure the temporary file is removed, so no partial output is ever left.
     """
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    with atomic_path(path) as tmp:
+        write(tmp)
+    return Path(path)
 
 
 def write_text(path, text: str) -> Path:

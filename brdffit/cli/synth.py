@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import UsageError, atomic_write, check_outputs, check_params, parse_assignments
+from ._common import UsageError, check_outputs, check_params, parse_assignments
 
 
 def add_parser(sub, parents) -> None:
@@ -99,13 +99,13 @@ def run(args) -> int:
         from data_formats.merl import write_merl
 
         table = synthesize_table(model, params, noise=args.noise, seed=args.seed, name=out.stem)
-        atomic_write(out, lambda tmp: write_merl(tmp, table))
+        write_merl(out, table)  # atomic itself (data_formats._atomic)
     else:
         from data_formats.samplelist import write_samples
 
         samples = synthesize_samples(model, params, args.samples, noise=args.noise,
                                      seed=args.seed, name=out.stem)
-        atomic_write(out, lambda tmp: write_samples(tmp, samples))
+        write_samples(out, samples)  # atomic itself
     if not args.quiet:
         shown = ", ".join(f"{k}={v}" for k, v in params.items()) or "defaults"
         print(f"wrote {out} ({model.name}: {shown})")

@@ -6,12 +6,12 @@ backend and no global figure registry are involved; PNGs are written by the Agg 
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+
+from data_formats._atomic import atomic_write
 
 #: Colour of cells or pixels without a measurement.
 MISSING_RGB = (0.55, 0.0, 0.55)
@@ -101,12 +101,5 @@ def save_png(fig: Figure, path) -> Path:
     """Write ``fig`` as a PNG to ``path`` atomically (temporary file in the folder, then rename)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format="png", dpi=fig.dpi)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=fig.dpi))
     return path
