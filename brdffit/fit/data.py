@@ -145,7 +145,7 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
     good[:k] = np.asarray(samples.valid, bool)[rows]
     good &= np.all(np.isfinite(rgb) & (rgb >= 0), axis=1)
     rgb[~good] = 0.0
-    sw = (np.sqrt(loss.weight(rgb, wi[:, 2:3], wo[:, 2:3])) * good[:, None]).astype(dtype)
+    sw = (loss.weight(rgb, wi[:, 2:3], wo[:, 2:3]) * good[:, None]).astype(dtype)
     dev = [jnp.asarray(a) for a in (wi, wo, rgb.astype(dtype, copy=False), sw)]
     target = jnp.where(dev[3] > 0, loss.transform(dev[2], dev[0][:, 2:3], dev[1][:, 2:3]), 0.0)
     data = FitData(dev[0], dev[1], dev[2], target, dev[3])

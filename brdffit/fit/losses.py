@@ -84,7 +84,8 @@ class Loss:
     Attributes:
         name: registry name.
         transform: ``g(f, cos_i, cos_o)`` in ``jnp`` (applied to data and predictions).
-        weight: ``w(ρ, cos_i, cos_o)`` in NumPy (data only, computed once).
+        weight: ``w(ρ, cos_i, cos_o)`` in NumPy (data only, computed once); it multiplies the
+            residual, so the cost weight is ``w²``.
         huber: ``None`` or the Huber threshold ``δ`` in residual units.
         description: one line for humans.
     """

@@ -96,7 +96,7 @@ class Problem(eqx.Module):
         One forward-mode ``jvp`` per free scalar, each with respect to one parameter of the
         model's dict while the others are closed over: the tangent then flows only through
         the terms that parameter touches (a diffuse albedo's tangent skips the specular lobe).
-        XLA's common-subexpression elimination shares the primal between the ``jvp``\ s.
+        XLA's common-subexpression elimination shares the primal between the ``jvp`` calls.
         """
         dt = jnp.dtype(self.compute_dtype)
         params = self.model.unflatten(self.full_vector(x_free).astype(dt))

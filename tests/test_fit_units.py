@@ -1,0 +1,293 @@
+"""Unit tests of the fitting engine's parts: losses, transforms, the normal form, data selection,
+errors, and the result object. Independent references: NumPy transcriptions, dense Jacobians
+from ``jax.jacfwd``, closed forms."""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import brdffit
+from brdffit.errors import ConfigError, FitError, UnknownNameError
+from brdffit.fit import LOSSES, FitResult, Subsample, get_loss
+from brdffit.fit.data import CHUNK_CELLS, select
+from brdffit.fit.losses import RELATIVE_FLOOR, huber_residual
+from brdffit.fit.normal_form import compress, gram, normal_form
+from brdffit.fit.problem import Problem
+from brdffit.fit.setup import flat_log
+from brdffit.fit.transforms import U_CLIP, at_bound, bounds_in_s, to_physical, to_unconstrained
+from data_formats import SampleSet
+
+RNG = np.random.default_rng(0)
+_GGX = jax.jit(lambda p, wi, wo: brdffit.get_model("ggx").fn(p, wi, wo))
+
+
+def hemisphere(n, rng=RNG):
+    """Random unit directions with z > 0.05."""
+    v = rng.normal(size=(n, 3))
+    v[:, 2] = np.abs(v[:, 2]) + 0.3
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def ggx_samples(n=3000, params=None, noise=0.0, seed=1, name="synthetic"):
+    rng = np.random.default_rng(seed)
+    wi, wo = hemisphere(n, rng), hemisphere(n, rng)
+    model = brdffit.get_model("ggx")
+    p = model.unflatten(model.flatten(params or {}))
+    rgb = np.asarray(_GGX(p, wi, wo))
+    rgb = rgb * (1 + noise * rng.standard_normal(rgb.shape))
+    return SampleSet(wi, wo, rgb, np.ones(n, bool), name=name)
+
+
+# -- losses -----------------------------------------------------------------------------------
+NUMPY_LOSSES = {
+    "linear": lambda p, d, ci, co: p - d,
+    "cosine": lambda p, d, ci, co: (p - d) * ci * co,
+    "log": lambda p, d, ci, co: np.log1p(p * ci) - np.log1p(d * ci),
+    "relative": lambda p, d, ci, co: (p - d) / np.maximum(np.abs(d), RELATIVE_FLOOR),
+}
+
+
+@pytest.mark.parametrize("name", sorted(LOSSES))
+def test_loss_residual_matches_numpy(name):
+    loss = get_loss(name)
+    pred, data = RNG.uniform(0, 50, (200, 3)), RNG.uniform(0, 50, (200, 3))
+    data[:5] = 1e-5  # below the relative floor
+    ci, co = RNG.uniform(0.05, 1, (200, 1)), RNG.uniform(0.05, 1, (200, 1))
+    target = loss.transform(jnp.asarray(data), ci, co)
+    sw = loss.weight(data, ci, co)
+    got = loss.residual(jnp.asarray(pred), target, sw, ci, co)
+    np.testing.assert_allclose(got, NUMPY_LOSSES[name](pred, data, ci, co), rtol=1e-12, atol=1e-14)
+
+
+def test_huber_half_square_is_hubers_loss():
+    r, delta = np.linspace(-5, 5, 101), 0.7
+    rh = np.asarray(huber_residual(jnp.asarray(r), delta))
+    expected = np.where(np.abs(r) <= delta, 0.5 * r**2, delta * np.abs(r) - 0.5 * delta**2)
+    np.testing.assert_allclose(0.5 * rh**2, expected, rtol=1e-12, atol=1e-15)
+    assert np.all(np.sign(rh) == np.sign(r))
+
+
+def test_loss_names_and_errors():
+    assert get_loss("log+huber").huber == 0.1
+    assert get_loss("cosine", huber=2.0).label == "cosine+huber(2)"
+    with pytest.raises(UnknownNameError, match="linear") as e:
+        get_loss("lgo")
+    assert "'log'" in str(e.value)  # suggests the close match
+    with pytest.raises(ConfigError, match="positive"):
+        get_loss("log").robust(-1.0)
+
+
+# -- transforms -------------------------------------------------------------------------------
+def test_transform_round_trip_and_bounds():
+    lo, hi = np.array([0.0, 1e-3, 0.3]), np.array([1.0, 1.0, 10.0])
+    log = np.array([False, True, True])
+    slo, shi = bounds_in_s(lo, hi, log)
+    x = np.array([0.25, 0.004, 1.2])
+    u = to_unconstrained(x, slo, shi, log)
+    np.testing.assert_allclose(to_physical(jnp.asarray(u), slo, shi, log), x, rtol=1e-12)
+    # an extreme u stays inside the bounds and is reported at the bound
+    big = np.array([-1e3, 1e3, 0.0])
+    xb = np.asarray(to_physical(jnp.asarray(big), slo, shi, log))
+    assert lo[0] <= xb[0] < lo[0] + 1e-12 and hi[1] - 1e-10 < xb[1] <= hi[1]
+    assert list(at_bound(big)) == [-1, 1, 0]
+    # beyond the clip the derivative is exactly zero (the solver stops pushing)
+    g = jax.grad(lambda v: jnp.sum(to_physical(v, slo, shi, log)))(jnp.asarray(big))
+    assert g[0] == 0 and g[1] == 0 and g[2] > 0
+    assert U_CLIP >= 25
+    # a start on a bound is moved inside by the margin
+    u0 = to_unconstrained(np.array([0.0, 1.0, 0.3]), slo, shi, log, margin=0.01)
+    p = 1 / (1 + np.exp(-u0))
+    np.testing.assert_allclose(p, [0.01, 0.99, 0.01], rtol=1e-9)
+
+
+# -- the normal form --------------------------------------------------------------------------
+def _toy_columns(u, data):
+    """A small nonlinear residual with a known dense Jacobian (and a duplicated direction)."""
+    x, y = data
+    pred = u[0] * jnp.exp(-u[1] * x) + u[2] * jnp.sin(x) + u[3] * u[2] * jnp.sin(x)
+    r = pred - y
+    cols = jax.vmap(lambda t: jax.jvp(lambda v: _toy_res(v, data), (u,), (t,))[1])(jnp.eye(4))
+    return r, cols
+
+
+def _toy_res(u, data):
+    x, y = data
+    return u[0] * jnp.exp(-u[1] * x) + u[2] * jnp.sin(x) + u[3] * u[2] * jnp.sin(x) - y
+
+
+def test_normal_form_reproduces_cost_gradient_and_gauss_newton_matrix():
+    x = jnp.linspace(0, 3, 64)
+    data = (x, 2.0 * jnp.exp(-0.7 * x) + 0.1 * jnp.cos(5 * x))
+    u = jnp.array([1.5, 0.4, 0.3, 0.0])  # at u[3]=0 the u[2], u[3] columns are parallel
+    J = jax.jit(jax.jacfwd(_toy_res))(u, data)
+    r = _toy_res(u, data)
+    s, jtj, jtr = jax.jit(lambda v, d: gram(_toy_columns, v, d))(u, data)
+    np.testing.assert_allclose(jtj, J.T @ J, rtol=1e-12)
+    np.testing.assert_allclose(jtr, J.T @ r, rtol=1e-12)
+    # chunked accumulation (4 blocks of 16) equals the single pass
+    s4, jtj4, jtr4 = jax.jit(lambda v, d: gram(_toy_columns, v, d, chunks=4))(u, data)
+    np.testing.assert_allclose([s4], [s], rtol=1e-12)
+    np.testing.assert_allclose(jtj4, jtj, rtol=1e-12)
+    rt, R = compress(s, jtj, jtr)
+    assert np.all(np.isfinite(rt)) and np.all(np.isfinite(R))
+    np.testing.assert_allclose(jnp.sum(rt**2), jnp.sum(r**2), rtol=1e-12)
+    np.testing.assert_allclose(R.T @ R, J.T @ J, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(R.T @ rt[:-1], J.T @ r, rtol=1e-9, atol=1e-9)
+    # the quadratic model agrees for any step
+    d = jnp.array([0.1, -0.2, 0.05, 0.3])
+    full = jnp.sum((J @ d + r) ** 2)
+    small = jnp.sum((R @ d + rt[:-1]) ** 2) + rt[-1] ** 2
+    np.testing.assert_allclose(small, full, rtol=1e-10)
+
+
+def test_normal_form_derivative_is_R():
+    x = jnp.linspace(0, 3, 40)
+    data = (x, jnp.cos(x))
+    fn = normal_form(_toy_columns)
+    u = jnp.array([1.0, 0.5, 0.2, 0.1])
+    d = jnp.array([0.3, -0.1, 0.2, 0.4])
+    (rt, aux), (drt, daux) = jax.jit(lambda v, t: jax.jvp(lambda w: fn(w, (data, 0.0)), (v,), (t,)))(u, d)
+    _, R = jax.jit(lambda v, dd: compress(*gram(_toy_columns, v, dd)))(u, data)
+    np.testing.assert_allclose(drt[:-1], R @ d, rtol=1e-12)
+    assert drt[-1] == 0 and np.all(np.asarray(daux["jtj"]) == 0)
+    J = jax.jit(jax.jacfwd(_toy_res))(u, data)
+    np.testing.assert_allclose(aux["jtj"], J.T @ J, rtol=1e-12)
+    r = _toy_res(u, data)
+    np.testing.assert_allclose(aux["meat"], (J * r[:, None] ** 2).T @ J, rtol=1e-12)
+
+
+def test_problem_columns_match_dense_jacobian_with_partly_fixed_rgb():
+    model = brdffit.get_model("ggx")
+    samples = ggx_samples(500)
+    sel = select(samples, get_loss("log"))
+    free = (0, 1, 2, 3, 5, 6)  # f0[1] fixed
+    log = flat_log(model)
+    lo, hi = model.flat_bounds()
+    slo, shi = bounds_in_s(lo, hi, log)
+    x0 = model.flatten({"diffuse": [0.3, 0.2, 0.1], "f0": [0.1, 0.2, 0.3], "alpha": 0.2})
+    prob = Problem(model, get_loss("log"), free, tuple(bool(b) for b in log[list(free)]), "float64", 1,
+                   jnp.asarray(x0), jnp.asarray(slo[list(free)]), jnp.asarray(shi[list(free)]))
+    u = jnp.asarray(RNG.normal(size=len(free)))
+    r, cols = jax.jit(lambda p, v, d: p.columns(v, d))(prob, u, sel.data)
+    J = jax.jit(lambda p, v, d: jax.jacfwd(p.residual)(v, d))(prob, u, sel.data)
+    np.testing.assert_allclose(r, jax.jit(lambda p, v, d: p.residual(v, d))(prob, u, sel.data),
+                               rtol=1e-13)
+    np.testing.assert_allclose(cols, J.T, rtol=1e-10, atol=1e-12)
+    assert float(prob.full_vector(prob.physical(u))[4]) == 0.2  # the fixed entry is untouched
+
+
+# -- data selection ---------------------------------------------------------------------------
+def test_select_masks_cutoff_and_subsample():
+    s = ggx_samples(4000)
+    s.rgb[0] = np.nan
+    s.rgb[1, 2] = -1.0
+    s.valid[2] = False
+    sel = select(s, get_loss("log"))
+    assert sel.n_used == 4000 - 3 and sel.n_usable == 4000
+    w = np.asarray(sel.data.sqrt_weight)
+    assert np.all(w[:3] == 0) and np.all(np.isfinite(np.asarray(sel.data.target)))
+    theta = np.degrees(np.arccos(np.minimum(s.wi[:, 2], s.wo[:, 2])))
+    cut = select(s, get_loss("log"), cutoff=60)
+    assert cut.n_usable == np.count_nonzero(theta <= 60)
+    sub = select(s, get_loss("log"), subsample=Subsample(500, "stratified"), seed=3)
+    assert len(sub.index) == 500 and sub.n_used <= 500
+    again = select(s, get_loss("log"), subsample=0.125, seed=3)
+    assert len(again.index) == 500
+    assert not np.array_equal(select(s, get_loss("log"), subsample=500, seed=4).index, again.index)
+
+
+def test_select_pads_to_whole_blocks_with_zero_weight():
+    n = CHUNK_CELLS + 10
+    wi = np.tile([[0.0, 0.6, 0.8]], (n, 1))
+    s = SampleSet(wi, wi.copy(), np.full((n, 3), 0.2), np.ones(n, bool))
+    sel = select(s, get_loss("log"))
+    assert sel.chunks == 2 and sel.data.wi.shape == (2 * CHUNK_CELLS, 3)
+    assert np.all(np.asarray(sel.data.sqrt_weight)[n:] == 0) and sel.n_used == n
+
+
+def test_select_option_errors():
+    s = ggx_samples(100)
+    with pytest.raises(ConfigError, match="cutoff"):
+        select(s, get_loss("log"), cutoff=120)
+    with pytest.raises(ConfigError, match="fraction"):
+        select(s, get_loss("log"), subsample=1.5)
+    with pytest.raises(ConfigError, match="stratified"):
+        select(s, get_loss("log"), subsample=Subsample(10, "every-other"))
+
+
+# -- fit errors -------------------------------------------------------------------------------
+def test_too_few_valid_cells_is_a_clear_error():
+    s = ggx_samples(2000)
+    s.valid[10:] = False
+    with pytest.raises(FitError, match=r"10 usable valid cells out of 2000.*needs at least 21"):
+        brdffit.fit(s, "ggx")
+    s = ggx_samples(2000)
+    s.rgb[:] = np.nan
+    with pytest.raises(FitError, match="NaNs"):
+        brdffit.fit(s, "ggx")
+
+
+def test_option_errors_name_the_choices():
+    s = ggx_samples(300)
+    with pytest.raises(UnknownNameError, match="dogleg"):
+        brdffit.fit(s, "ggx", solver="newton")
+    with pytest.raises(UnknownNameError, match="alpha"):
+        brdffit.fit(s, "ggx", fixed={"roughness": 0.1})
+    with pytest.raises(ConfigError, match=r"outside its bounds \[0.001, 1\]"):
+        brdffit.fit(s, "ggx", fixed={"alpha": 2.0})
+    with pytest.raises(ConfigError, match="lower bound must be > 0"):
+        brdffit.fit(s, "ggx", bounds={"alpha": (0.0, 0.5)})
+    with pytest.raises(FitError, match="nothing to fit"):
+        brdffit.fit(s, "ggx", fixed={"diffuse": 0.1, "f0": 0.1, "alpha": 0.1})
+    with pytest.raises(UnknownNameError, match="sandwich"):
+        brdffit.fit(s, "ggx", covariance="hessian")
+
+
+# -- the result -------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def small_fit():
+    s = ggx_samples(3000, {"diffuse": [0.3, 0.2, 0.1], "f0": [0.9, 0.6, 0.4], "alpha": 0.2},
+                    noise=0.02)
+    events = []
+    res = brdffit.fit(s, "ggx", fixed={"f0[2]": 0.4}, progress=lambda e, i: events.append((e, i)))
+    return s, res, events
+
+
+def test_result_fields_progress_and_fixed(small_fit):
+    s, res, events = small_fit
+    assert res.success and res.status == "successful" and res.steps > 0
+    assert res.params["f0"][2] == 0.4 and res.fixed == ["f0[2]"] and "f0[2]" not in res.free
+    assert res.stderr["f0"][2] == 0 and res.stderr["alpha"] > 0
+    kinds = [e for e, _ in events]
+    assert kinds[0] == "setup" and "step" in kinds and kinds[-1] == "done"
+    steps = [i["cost"] for e, i in events if e == "step"]
+    assert steps[-1] == pytest.approx(res.cost, rel=1e-6) and steps[0] > steps[-1]
+    pred = np.asarray(res.model(s.wi, s.wo))
+    np.testing.assert_allclose(res.metrics["rel_error"],
+                               np.mean(np.abs(pred - s.rgb) / np.maximum(s.rgb, 1e-3)), rtol=1e-9)
+    assert "alpha" in res.summary() and "(fixed)" in res.summary()
+
+
+def test_result_json_round_trip(small_fit, tmp_path):
+    _, res, _ = small_fit
+    res.stderr["alpha"] = float("nan")  # NaNs (at-bound scalars) must survive as null
+    text = res.to_json(tmp_path / "r.json")
+    assert "NaN" not in text and json.loads(text)["stderr"]["alpha"] is None
+    back = FitResult.from_json(tmp_path / "r.json")
+    assert back.params == res.params and np.isnan(back.stderr["alpha"])
+    np.testing.assert_array_equal(back.cov, res.cov)
+    np.testing.assert_array_equal(back.x, res.x)
+    assert back.to_dict().keys() == res.to_dict().keys()
+    assert FitResult.from_json(text).summary() == res.summary()
+
+
+def test_non_convergence_throws_or_reports():
+    s = ggx_samples(1000)
+    with pytest.raises(FitError, match="did not converge.*max_steps"):
+        brdffit.fit(s, "ggx", max_steps=2)
+    res = brdffit.fit(s, "ggx", max_steps=2, throw=False)
+    assert not res.success and res.status == "nonlinear_max_steps_reached"
+    assert "max_steps" in res.message and np.all(np.isfinite(res.x))
