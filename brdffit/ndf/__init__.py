@@ -5,23 +5,30 @@ from .beckmann import Beckmann, beckmann_lambda_exact, beckmann_lambda_rational
 from .blinn_phong import BlinnPhong, beckmann_alpha_to_phong, phong_to_beckmann_alpha
 from .ggx import GGX
 from .gtr import GTR, gtr_log_normalization
-from .numerical import ProjectedAreaTable, isotropic, numerical_lambda, projected_area_normal
+from .numerical import (
+    ProjectedAreaTable,
+    isotropic,
+    numerical_lambda,
+    projected_area,
+    projected_area_normal,
+)
 
 __all__ = [
     "ALPHA_MIN",
-    "NDF",
-    "clamp_alpha",
-    "Beckmann",
-    "BlinnPhong",
     "GGX",
     "GTR",
+    "NDF",
+    "Beckmann",
+    "BlinnPhong",
     "ProjectedAreaTable",
     "beckmann_alpha_to_phong",
     "beckmann_lambda_exact",
     "beckmann_lambda_rational",
+    "clamp_alpha",
     "gtr_log_normalization",
     "isotropic",
     "numerical_lambda",
     "phong_to_beckmann_alpha",
+    "projected_area",
     "projected_area_normal",
 ]

@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 from jax.scipy.special import erfc
 
-from .._math import chi_plus, cos2_sin2_phi, safe_div, safe_sqrt, tan2_theta
+from .._math import cos2_sin2_phi, safe_sqrt, tan2_theta
 from .base import NDF, clamp_alpha
 
 _INV_SQRT_PI = 0.5641895835477563

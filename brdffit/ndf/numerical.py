@@ -17,24 +17,30 @@ as APS's ``p(h)`` may be, and cancels the quadrature's normalisation error.
 
 Quadrature (one idea: resolve the peak at the roughness scale ``s`` and the tail at scale 1):
 
-* polar angle of ``m``: ``tan θm = s sinh(y)``, Gauss–Legendre in ``y`` on ``[0, y*]`` and
-  ``[y*, y_max]``, ``tan θ_max = 1e8``. ``y*`` is where ``(ω·m)⁺`` starts to clip; for the
-  isotropic table it is exactly ``y* = ξ`` (below), so the kink sits on a panel boundary;
+* polar angle of ``m``: ``tan θm = s sinh(y)`` (linear in ``y`` at the peak, logarithmic in
+  the tail), Gauss–Legendre with ``n_quad`` nodes on each of four panels of ``[0, y_max]``
+  (``tan θm ≤ 1e8``), split at the peak (``tan θm = 3s``), at 45° and at ``y*``, where
+  ``(ω·m)⁺`` starts to clip; for the isotropic table ``y* = ξ`` exactly (below), so the kink of
+  the integrand always sits on a panel boundary;
 * azimuth of ``m``, isotropic ``D``: integrated analytically,
   ``∫₀^{2π} (A cos φ + B)⁺ dφ = 2(B·atan2(√(A²−B²), −B) + √(A²−B²))`` (``2πB`` when ``B ≥ A``),
-  with ``A = sin θ sin θm``, ``B = cos θ cos θm``; anisotropic ``D``: trapezoid rule, with the
-  kink of each azimuthal line on a panel boundary.
+  with ``A = sin θ sin θm``, ``B = cos θ cos θm``; anisotropic ``D`` (:func:`projected_area`):
+  Gauss–Legendre over stretched azimuths, see there.
 
 Isotropic tables (:class:`ProjectedAreaTable`) are tabulated over ``θ`` only, on a uniform grid
-in ``ξ = asinh(cot θ / s)`` (``ξ ∈ [0, asinh(1e4/s)]``), built from the *current* ``D`` inside the
-traced function (parameters flow through the quadrature), stored as ``G = g(θ)/g(n)`` and its
-exact ``dG/dξ`` (forward-mode AD through the quadrature), and read back by cubic Hermite
-interpolation. ``Λ = G/cos θ − 1`` divides by the exact ``cos θ``, so the grazing divergence is
-exact and ``G1 = cos θ / G`` has the relative error of ``G``.
+of ``n_theta`` nodes in ``ξ = asinh(cot θ / s)`` (``ξ ∈ [0, asinh(1e4/s)]``), built from the
+*current* ``D`` inside the traced function (parameters flow through the quadrature, not through
+a frozen table), stored as ``G = g(θ)/g(n)`` with its exact ``dG/dξ`` (forward-mode AD through
+the quadrature), and read back by cubic Hermite interpolation: O(1) per direction, so a fit over
+a full MERL table pays one table (``4 · n_quad · n_theta`` evaluations of ``D``) plus a gather
+per sample. ``Λ = G/|cos θ| − 1`` divides by the exact ``cos θ``, so the grazing divergence is
+exact and ``G1 = cos θ / G`` carries the relative error of ``G``.
 
-Accuracy (float64, default ``n_theta=128, n_quad=48``), against GGX's closed form (RTR 9.42)
-over θ ∈ [0°, 90°] and α ∈ [0.005, 1]: see ``tests/test_ndf.py::test_numerical_lambda_accuracy``
-and the module's report; the measured maximum relative error of ``G1`` is below ``1e-6``.
+Accuracy, measured with the defaults (``n_theta=256, n_quad=32``) against the closed forms over
+2500 θ in [0°, 90°) (down to 1e-6 rad from grazing) and α ∈ {0.005, 0.01, 0.03, 0.1, 0.3, 0.6, 1}:
+max relative error of ``G1`` 2.4e-7 (GGX, RTR 9.42) and 1.3e-7 (Beckmann, RTR 9.38) in float64,
+7e-7 (GGX) in float32; of ``Λ`` where ``Λ > 1e-3``, 3.6e-5 (both); ``g(n)`` is 1 to 1e-15.
+Interpolation in θ dominates the error: ``n_theta=128`` gives ~1e-6 for ``G1``.
 """
 
 from __future__ import annotations
@@ -57,7 +63,11 @@ N_PHI = 64
 
 
 def isotropic(D_of_cos):  # noqa: N803
-    """Wrap ``D(cos θm)`` as a function of the microfacet normal vector ``m`` (``(..., 3)``)."""
+    """Wrap ``D(cos θm)`` as a function of the microfacet normal vector ``m`` (``(..., 3)``).
+
+    For sharp peaks in float32 prefer writing ``D(m)`` with ``sin²θm = m_x² + m_y²``: the
+    quadrature builds ``m`` with an accurate ``sin θm``, while ``1 − cos²θm`` loses it.
+    """
     return lambda m: D_of_cos(m[..., 2])
 
 
