@@ -131,15 +131,15 @@ def test_specular_albedo_at_most_one_with_f0_one(name):
         assert 0.0 < a <= 1.0 + 3e-3, (name, np.degrees(theta), a)
 
 
-@pytest.mark.parametrize("name", ["gaussian", "velvet", "vgroove"])
+@pytest.mark.parametrize("name", ["gaussian", "velvet"])
 def test_total_albedo_is_one_with_unit_diffuse_albedo(name):
     dist, shadowing = DISTS[name]
     f0 = jnp.asarray([0.04, 0.5, 1.0])
     f = jax.jit(lambda wi, wo: aps_brdf(dist, f0, jnp.ones(3), wi, wo, shadowing=shadowing))
-    spec = jax.jit(lambda wi, wo: aps_brdf(dist, f0, None, wi, wo, shadowing=shadowing))
     for theta in np.radians([0.0, 50.0, 80.0]):
-        np.testing.assert_allclose(albedo(f, theta), 1.0, atol=6e-3)
-        assert np.all(albedo(spec, theta) < 1.0)  # the diffuse term really contributes
+        np.testing.assert_allclose(albedo(f, theta), 1.0, atol=3e-3)
+    spec = jax.jit(lambda wi, wo: aps_brdf(dist, f0, None, wi, wo, shadowing=shadowing))
+    assert np.all(albedo(spec, 0.9) < 0.99)  # the diffuse term really contributes
 
 
 def test_metal_variant_albedo_is_R_plus_f0_times_leftover():
@@ -183,8 +183,8 @@ def test_reciprocity_every_variant(name):
 def test_non_heightfield_path_equals_heightfield_when_p_vanishes_below():
     wi, wo = hemi(100, 8), hemi(100, 9)
     args = (jnp.full(3, 0.3), jnp.full(3, 0.5), wi, wo)
-    a = aps_brdf(AnisotropicGaussian(0.3), *args)
-    b = aps_brdf(FunctionDistribution(_nonheightfield, 0.3, heightfield=False), *args)
+    a = aps_brdf(AnisotropicGaussian(0.3), *args, resolution=COARSE)
+    b = aps_brdf(FunctionDistribution(_nonheightfield, 0.3, heightfield=False), *args, resolution=COARSE)
     np.testing.assert_allclose(a, b, rtol=2e-3)
 
 
@@ -194,8 +194,8 @@ def test_non_heightfield_mean_normal_includes_the_lower_hemisphere():
         return jnp.where(h[..., 2] > 0, AnisotropicGaussian(0.3).p(h), 0.0)
 
     both = FunctionDistribution(lambda h, s: up(h) + s * up(h * jnp.asarray([1.0, 1.0, -1.0])), 0.25, heightfield=False)
-    t_up = build_g_table(AnisotropicGaussian(0.3), F64)
-    t_both = build_g_table(both, F64)
+    t_up = build_g_table(AnisotropicGaussian(0.3), F64, COARSE)
+    t_both = build_g_table(both, F64, COARSE)
     np.testing.assert_allclose(t_both.hn, 0.75 * t_up.hn, rtol=1e-6)
     k = hemi(20, 10)
     assert np.all(np.asarray(t_both.P(k)) <= np.asarray(t_up.P(k)) + 1e-9)  # more self-shadowing
@@ -228,12 +228,14 @@ def test_correlated_form_raises_retroreflection_only():
 def test_gradient_through_the_tables_matches_finite_differences():
     wi, wo = hemi(32, 13), hemi(32, 14)
 
+    @jax.jit
     def scalar(s):
         d = FunctionDistribution(_nonheightfield, s, heightfield=False)
         return jnp.sum(aps_brdf(d, jnp.full(3, 0.2), jnp.full(3, 0.5), wi, wo, resolution=COARSE))
 
-    g = float(jax.grad(scalar)(0.3))
-    fd = (float(scalar(0.3 + 1e-6)) - float(scalar(0.3 - 1e-6))) / 2e-6
+    x = jnp.asarray(0.3)
+    g = float(jax.jit(jax.grad(scalar))(x))
+    fd = (float(scalar(x + 1e-6)) - float(scalar(x - 1e-6))) / 2e-6
     assert g == pytest.approx(fd, rel=1e-5)
 
 
