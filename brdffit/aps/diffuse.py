@@ -49,16 +49,18 @@ class RTable(eqx.Module):
 
     def __call__(self, k, f0):
         """``R(k; f0)`` at directions ``(..., 3)``: ``(..., 3)`` for RGB ``f0``."""
-        r0, r1 = interp_table(self.r0, k), interp_table(self.r1, k)
-        return r0[..., None] + jnp.asarray(f0) * (r1 - r0)[..., None]
+        r = interp_table(jnp.stack([self.r0, self.r1], axis=-1), k)  # one lookup for both
+        r0, r1 = r[..., 0:1], r[..., 1:2]
+        return r0 + jnp.asarray(f0) * (r1 - r0)
 
 
 @eqx.filter_jit
 def build_r_table(dist, table, dtype, res: Resolution = Resolution(), shadowing=UNCORRELATED):
-    """``R₀, R₁`` (APS eq. 29) on ``table``'s grid; ``p`` is evaluated once on the polar rule."""
-    n_phi = table.delta.shape[1]
-    k1 = jnp.asarray(table_directions(res.n_u, n_phi).reshape(-1, 1, 3), dtype)  # (K, 1, 3)
-    h_np, w_np = polar_rule(res.n_theta, res.n_phi_q)
+    """``R₀, R₁`` (APS eq. 29) on the ``res.r_grid`` directions; ``p`` is evaluated once on the
+    polar rule ``res.r_quad`` and shared by all directions."""
+    n_u, n_phi = res.r_grid[0], (1 if table.delta.shape[1] == 1 else res.r_grid[1])
+    k1 = jnp.asarray(table_directions(n_u, n_phi).reshape(-1, 1, 3), dtype)  # (K, 1, 3)
+    h_np, w_np = polar_rule(*res.r_quad)
     h = jnp.asarray(h_np, dtype)  # (Q, 3)
     w = jnp.asarray(w_np, dtype) * dist.p(h)  # (Q,)
     c = jnp.sum(k1 * h, axis=-1)  # (K, Q)  (k1·h)
@@ -70,7 +72,7 @@ def build_r_table(dist, table, dtype, res: Resolution = Resolution(), shadowing=
     base = w * s * c * jnp.maximum(cos_theta(k2), 0.0) * mask
     r1 = jnp.sum(base, axis=-1)
     r0 = jnp.sum(base * jnp.clip(1.0 - c, 0.0, 1.0) ** 5, axis=-1)
-    return RTable(r0.reshape(res.n_u, n_phi), r1.reshape(res.n_u, n_phi))
+    return RTable(r0.reshape(n_u, n_phi), r1.reshape(n_u, n_phi))
 
 
 def _coupled(rtable, rho_d, f0, white, wi, wo):

@@ -85,22 +85,23 @@ def table_directions(n_u: int, n_phi: int):
 
 
 def interp_table(values, k):
-    """(Bi)linear interpolation of a table ``(n_u, n_phi)`` at directions ``k`` ``(..., 3)``.
+    """(Bi)linear interpolation of a table ``(n_u, n_phi, ...)`` at directions ``k`` ``(..., 3)``.
 
     ``n_phi == 1`` means isotropic (only ``k_z`` is read). Directions below the horizon read the
     horizon row. The table's values may be traced; the node positions are not.
     """
-    n_u, n_phi = values.shape
+    n_u, n_phi = values.shape[:2]
+    extra = (None,) * (values.ndim - 2)  # trailing table axes (several tables on one grid)
     u = jnp.sqrt(jnp.clip(k[..., 2], 0.0, 1.0))
     x = u * (n_u - 1)
     i0 = jnp.clip(jnp.floor(x), 0, n_u - 2).astype(jnp.int32)
-    fx = x - i0
+    fx = (x - i0)[(...,) + extra]
     if n_phi == 1:
         col = values[:, 0]
         return (1 - fx) * col[i0] + fx * col[i0 + 1]
     y = jnp.mod(jnp.arctan2(k[..., 1], k[..., 0]), 2 * np.pi) * (n_phi / (2 * np.pi))
     j0 = jnp.clip(jnp.floor(y), 0, n_phi - 1).astype(jnp.int32)
-    fy, j1 = y - j0, (j0 + 1) % n_phi
+    fy, j1 = (y - j0)[(...,) + extra], (j0 + 1) % n_phi
     lo = (1 - fy) * values[i0, j0] + fy * values[i0, j1]
     hi = (1 - fy) * values[i0 + 1, j0] + fy * values[i0 + 1, j1]
     return (1 - fx) * lo + fx * hi
