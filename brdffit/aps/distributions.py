@@ -69,6 +69,8 @@ class FunctionDistribution(Distribution):
                              jnp.asarray(0.2), isotropic=True)
 
     ``isotropic=True`` promises that ``fn`` depends on ``h_z`` only (the tables become 1-D).
+    ``fn`` is a static (hashed) field: define it once, not as a fresh lambda per call, or every
+    call compiles the table builders anew.
     """
 
     fn: Callable = eqx.field(static=True)
@@ -97,7 +99,7 @@ class NDFDistribution(Distribution):
 
     For a normalized NDF ``⟨⟨hn⟩⟩ = 1`` (RTR eq. 9.21) and ``P(k)`` (APS eq. 25) is Smith's G1
     (RTR eq. 9.24), so APS eq. 26 is the microfacet lobe (RTR eq. 9.34) with the separable G2
-    (RTR eq. 9.27).
+    (RTR eq. 9.27). Pass ``is_isotropic=False`` for an anisotropic NDF.
     """
 
     ndf: Any

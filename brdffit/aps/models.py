@@ -31,6 +31,7 @@ def aps_brdf(dist, f0, diffuse, wi, wo, *, shadowing=UNCORRELATED, resolution=Re
         resolution: table and quadrature sizes (:class:`~brdffit.aps.tables.Resolution`).
         metal: use the metal variant of the diffuse term (§5.1).
     """
+    f0 = jnp.asarray(f0)
     dtype = jnp.result_type(wi, wo, f0)
     table = build_g_table(dist, dtype, resolution)
     out = aps_specular(dist, table, f0, wi, wo, shadowing)
