@@ -36,6 +36,7 @@ from data_formats.merl import MERLTable, cell_directions, read_merl, synthesize,
 
 ROOT = Path(__file__).resolve().parent.parent
 SIGMA = 0.01
+SUB = 600  # cells: one size everywhere, so the fit and the log-posterior compile once
 CUTOFF = 60.0  # g(ρ) ≥ 4.7 SIGMA inside it: no noisy cell goes negative (and gets dropped)
 GGX_TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.15}
 GTR_TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.15, "gamma": 1.5}
@@ -73,19 +74,19 @@ def ggx_table(tmp_path_factory):
 def ggx_posterior(ggx_table):
     """A chain of at least 50 τ (the statistics need it); fewer cells and walkers than the
     defaults keep it quick."""
-    return sample_posterior(ggx_table, "ggx", cutoff=CUTOFF, seed=1, subsample=600,
+    return sample_posterior(ggx_table, "ggx", cutoff=CUTOFF, seed=1, subsample=SUB,
                             nwalkers=16, nsteps=2400, burn=400)
 
 
 @pytest.fixture(scope="module")
 def ggx_fit(ggx_table):
-    return brdffit.fit(ggx_table, "ggx", cutoff=CUTOFF, subsample=400, seed=5)
+    return brdffit.fit(ggx_table, "ggx", cutoff=CUTOFF, subsample=SUB, seed=5)
 
 
 # -- the likelihood -----------------------------------------------------------------------------
 def test_log_posterior_matches_numpy_transcription(ggx_table, ggx_fit):
     post, sel, center, *_ = _posterior(
-        ggx_fit, ggx_table.to_samples(), loss=None, cutoff=CUTOFF, subsample=400, seed=5,
+        ggx_fit, ggx_table.to_samples(), loss=None, cutoff=CUTOFF, subsample=SUB, seed=5,
         bounds=None, noise=0.02, prior={"alpha": LogUniform(0.01, 0.5), "f0[1]": Normal(0.4, 0.1, 0, 1)},
     )
     d = sel.data
@@ -156,7 +157,7 @@ def test_gtr_credible_intervals_cover_truth(tmp_path):
 
 # -- mechanics ------------------------------------------------------------------------------------
 def short_run(table, fit, **kw):
-    opts = dict(cutoff=CUTOFF, subsample=400, nwalkers=16, nsteps=60, burn=10, seed=5)
+    opts = dict(cutoff=CUTOFF, subsample=SUB, nwalkers=16, nsteps=60, burn=10, seed=5)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ChainTooShortWarning)
         return sample_posterior(table, fit, **{**opts, **kw})
@@ -173,7 +174,7 @@ def test_same_seed_same_chain_other_seed_other_chain(ggx_table, ggx_fit):
 
 def test_short_chain_warns_with_emcee_guidance(ggx_table, ggx_fit):
     with pytest.warns(ChainTooShortWarning, match=r"too short.*50 x tau"):
-        post = sample_posterior(ggx_table, ggx_fit, cutoff=CUTOFF, subsample=400, nwalkers=16,
+        post = sample_posterior(ggx_table, ggx_fit, cutoff=CUTOFF, subsample=SUB, nwalkers=16,
                                 nsteps=40, burn=5, seed=5)
     d = post.diagnostics
     assert d.too_short and d.n_kept == 35 and set(d.tau) == set(post.sampled)
@@ -181,9 +182,9 @@ def test_short_chain_warns_with_emcee_guidance(ggx_table, ggx_fit):
 
 
 def test_fixed_stay_fixed_and_noise_can_be_sampled(ggx_table):
-    fit = brdffit.fit(ggx_table, "ggx", cutoff=CUTOFF, subsample=400, seed=5,
+    fit = brdffit.fit(ggx_table, "ggx", cutoff=CUTOFF, subsample=SUB, seed=5,
                       fixed={"f0": GGX_TRUTH["f0"]})
-    post = short_run(ggx_table, fit, noise="sampled", nsteps=150, burn=75)
+    post = short_run(ggx_table, fit, noise="sampled", nsteps=100, burn=50)
     assert post.sampled == ["diffuse[0]", "diffuse[1]", "diffuse[2]", "alpha", "sigma"]
     assert post.fixed == ["f0[0]", "f0[1]", "f0[2]"] and post.params["f0"] == GGX_TRUTH["f0"]
     assert post.noise["mode"] == "sampled" and "sigma" in post.percentiles
@@ -207,14 +208,21 @@ def test_prior_and_option_errors_say_what_to_do(ggx_table, ggx_fit):
         short_run(ggx_table, ggx_fit, burn=60)
 
 
-def test_prior_override_truncates_the_posterior(ggx_table, ggx_fit):
-    """A prior that excludes the least-squares optimum (α ≈ 0.15): walkers start at the box's
-    edge and stay inside it; the posterior piles up against the bound nearest the data."""
+def test_prior_overrides_truncate_and_inform(ggx_table, ggx_fit):
+    """A box that excludes the least-squares optimum (α ≈ 0.15) keeps every walker inside it;
+    a tight Normal prior shrinks the posterior to the prior's width (posterior precision is the
+    sum of the likelihood's and the prior's: 1/σ² = 1/σ_ls² + 1/σ_p²)."""
     post = short_run(ggx_table, ggx_fit, prior={"alpha": (0.17, 0.5)}, nsteps=100)
     alpha = post.chain[..., post.sampled.index("alpha")]
-    assert alpha.min() >= 0.17 and np.median(alpha[-1]) < 0.175
+    assert alpha.min() >= 0.17 and alpha.max() <= 0.5
     assert post.prior["alpha"] == "uniform on [0.17, 0.5]"
     assert post.prior["diffuse[0]"] == "uniform on [0, 1]"
+    se = post.stderr_ls["alpha"]
+    tight = short_run(ggx_table, ggx_fit, prior={"alpha": Normal(0.15, se / 10, 0.1, 0.2)},
+                      nsteps=200, burn=100)
+    expected = 1.0 / np.sqrt(1.0 / se**2 + 1.0 / (se / 10) ** 2)
+    assert 0.6 < tight.std["alpha"] / expected < 1.5
+    assert tight.prior["alpha"].startswith("normal")
 
 
 def test_outputs_json_npz_corner(ggx_table, ggx_fit, tmp_path):
@@ -236,22 +244,22 @@ def test_cli_fit_mcmc_end_to_end(ggx_table, tmp_path, monkeypatch, capsys):
     table = tmp_path / "t.binary"
     write_merl(table, ggx_table)
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    args = ["fit", table, "--model", "ggx", "--cutoff", 60, "--subsample", 1000, "--mcmc",
-            "--walkers", 16, "--steps", 120, "--mcmc-subsample", 400, "--seed", 3,
+    args = ["fit", table, "--model", "ggx", "--cutoff", 60, "--subsample", 400, "--mcmc",
+            "--walkers", 16, "--steps", 60, "--mcmc-subsample", 400, "--seed", 3,
             "--out", "r.json", "--plot", "fig.png"]
     run = subprocess.run([sys.executable, str(ROOT / "cli.py"), *map(str, args)], cwd=tmp_path,
                          capture_output=True, text=True, env=env, timeout=600)
     assert run.returncode == 0, run.stderr
     assert "ggx posterior of t" in run.stdout and "p16" in run.stdout
-    assert "brdffit fit: warning: the chain is too short" in run.stderr  # 120 steps < 50 τ
+    assert "brdffit fit: warning: the chain is too short" in run.stderr  # 60 steps < 50 τ
     result = json.loads((tmp_path / "r.json").read_text())
     post = result["posterior"]
-    assert result["success"] and post["settings"]["nsteps"] == 120
+    assert result["success"] and post["settings"]["nsteps"] == 60
     assert set(post["percentiles"]) == set(result["free"])
     for name, (p16, p50, p84) in post["percentiles"].items():
         assert p16 < p50 < p84
     with np.load(tmp_path / "r-chain.npz") as z:
-        assert z["chain"].shape == (120, 16, 7)
+        assert z["chain"].shape == (60, 16, 7)
     assert (tmp_path / "fig-corner.png").stat().st_size > 20_000
 
     from brdffit.cli import main
