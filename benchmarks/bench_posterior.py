@@ -52,7 +52,8 @@ def synthetic_table(folder: str) -> MERLTable:
     f = jax.jit(lambda wi, wo: model(params, wi, wo))
     clean = synthesize(lambda wi, wo: np.stack([np.asarray(f(a, b)) for a, b in zip(wi, wo)]))
     cos_i = np.clip(cell_directions(clean.shape)[0][..., 2:3], 1e-9, None)
-    g = np.log1p(clean.rgb * cos_i) + 0.01 * np.random.default_rng(0).standard_normal(clean.rgb.shape)
+    noise = 0.01 * np.random.default_rng(0).standard_normal(clean.rgb.shape)
+    g = np.log1p(clean.rgb * cos_i) + noise
     rho = np.expm1(g) / cos_i
     valid = clean.valid & np.all(rho >= 0, axis=-1)
     path = os.path.join(folder, "bench-ggx.binary")

@@ -87,7 +87,8 @@ def ggx_fit(ggx_table):
 def test_log_posterior_matches_numpy_transcription(ggx_table, ggx_fit):
     post, sel, center, *_ = _posterior(
         ggx_fit, ggx_table.to_samples(), loss=None, cutoff=CUTOFF, subsample=SUB, seed=5,
-        bounds=None, noise=0.02, prior={"alpha": LogUniform(0.01, 0.5), "f0[1]": Normal(0.4, 0.1, 0, 1)},
+        bounds=None, noise=0.02,
+        prior={"alpha": LogUniform(0.01, 0.5), "f0[1]": Normal(0.4, 0.1, 0, 1)},
     )
     d = sel.data
     wi, wo, rgb, w = (np.asarray(a) for a in (d.wi, d.wo, d.rgb, d.sqrt_weight))

@@ -32,8 +32,10 @@ def add_arguments(parser) -> None:
                    "next to --plot)")
     g.add_argument("--walkers", type=int, metavar="N",
                    help=f"emcee walkers (default {DEFAULT_WALKERS}; even, >= 2 x free parameters)")
-    g.add_argument("--steps", type=int, metavar="N", help=f"steps per walker (default {DEFAULT_STEPS})")
-    g.add_argument("--burn", type=int, metavar="N", help=f"burn-in steps dropped (default {DEFAULT_BURN})")
+    g.add_argument("--steps", type=int, metavar="N",
+                   help=f"steps per walker (default {DEFAULT_STEPS})")
+    g.add_argument("--burn", type=int, metavar="N",
+                   help=f"burn-in steps dropped (default {DEFAULT_BURN}, or steps/5 if smaller)")
     g.add_argument("--noise", choices=("fixed", "sampled"),
                    help="noise scale: fixed at the least-squares estimate (default) or sampled")
     g.add_argument("--mcmc-subsample", type=int, metavar="N",

@@ -97,7 +97,8 @@ def diagnose(chain, acceptance, names, burn: int, tol: int = TAU_TOL) -> Diagnos
         acceptance=float(acc.mean()), acceptance_min=float(acc.min()),
         acceptance_max=float(acc.max()),
         tau={n: float(t) for n, t in zip(names, tau)},
-        ess={n: float(nwalkers * n_kept / t) if t > 0 else float("nan") for n, t in zip(names, tau)},
+        ess={n: float(nwalkers * n_kept / t) if t > 0 else float("nan")
+             for n, t in zip(names, tau)},
         n_kept=int(n_kept), tol=int(tol),
         too_short=bool(not np.isfinite(tau_max) or n_kept < tol * tau_max), messages=msgs,
     )
