@@ -77,8 +77,12 @@ class GTR(NDF):
     When ``γ`` is a concrete 2 (a Python number or a concrete array, not a traced value) this
     is GGX's closed form, RTR eq. 9.42; otherwise it is the numerical Λ of
     :mod:`brdffit.ndf.numerical` (weak white furnace, RTR 9.23/9.24), so inside a fit, where
-    ``γ`` is traced, the numerical Λ is used for every ``γ`` including 2 (within ~3e-7 of the
-    closed form there) and ``∂Λ/∂γ`` stays correct.
+    ``γ`` is traced, the numerical Λ is used for every ``γ`` including 2 (G1 within 2.4e-7 of
+    the closed form there, measured over α ∈ [0.005, 1]) and ``∂Λ/∂γ`` stays correct.
+
+    ``alpha`` and ``gamma`` are scalars (batch over parameter sets with ``jax.vmap``): each
+    ``Lambda`` call builds one θ table from them (``n_theta`` nodes, ``4 · n_quad`` quadrature
+    nodes each; a few ms on a CPU) and interpolates it for every direction.
     """
 
     alpha: jax.Array
