@@ -7,7 +7,10 @@ any work (so existing outputs are refused up front, as for every other output), 
 * the chain: ``--chain PATH``, else next to ``--out``: ``RESULT.json`` → ``RESULT-chain.npz``;
 * the corner plot: next to ``--plot``: ``FIG.png`` → ``FIG-corner.png``.
 
-Files are written atomically by the caller's ``atomic_write``.
+Files are written atomically by the caller's ``atomic_write``. The likelihood uses its own
+cells (``--mcmc-subsample``, default 2000 stratified in θh), not the fit's ``--subsample``; it
+shares the fit's loss, cutoff, bounds, fixed values and seed. So posterior medians and the
+least-squares values differ by about a standard error when the two cell sets differ.
 """
 
 from __future__ import annotations
