@@ -37,8 +37,15 @@ def main(argv=None):
     jax.config.update("jax_enable_x64", not args.float32)
 
     import brdffit
-    from brdffit.aps import CORRELATED, AnisotropicGaussian, Velvet, aps_diffuse, aps_specular
-    from brdffit.aps import build_g_table, build_r_table
+    from brdffit.aps import (
+        CORRELATED,
+        AnisotropicGaussian,
+        Velvet,
+        aps_diffuse,
+        aps_specular,
+        build_g_table,
+        build_r_table,
+    )
     from brdffit.aps.models import ANISO_RESOLUTION, ISO_RESOLUTION
     from data_formats.merl import cell_directions
 
@@ -55,7 +62,7 @@ def main(argv=None):
     for name, extra in (("aps-velvet", dict(sigma=0.5)), ("aps-gaussian", dict(sigma_x=0.2, sigma_y=0.4))):
         m = brdffit.get_model(name)
         p = dict(diffuse=rho, f0=f0, **{k: jnp.asarray(v, dt) for k, v in extra.items()})
-        rows.append((f"{name}, tables built inside", _time(jax.jit(lambda p, a, b: m(p, a, b)), p, wi, wo, repeat=args.repeat)))
+        rows.append((f"{name}, tables built inside", _time(jax.jit(lambda p, a, b, m=m: m(p, a, b)), p, wi, wo, repeat=args.repeat)))
 
     for label, dist, res, shadowing in (
         ("aps-velvet, tables prebuilt", Velvet(jnp.asarray(0.5, dt)), ISO_RESOLUTION, CORRELATED),
@@ -66,7 +73,7 @@ def main(argv=None):
         sh = shadowing or UNCORRELATED
         g = build_g_table(dist, dt, res)
         r = build_r_table(dist, g, dt, res, sh)
-        ev = jax.jit(lambda d, g, r, a, b: aps_specular(d, g, f0, a, b, sh) + aps_diffuse(r, rho, f0, a, b))
+        ev = jax.jit(lambda d, g, r, a, b, sh=sh: aps_specular(d, g, f0, a, b, sh) + aps_diffuse(r, rho, f0, a, b))
         rows.append((label, _time(ev, dist, g, r, wi, wo, repeat=args.repeat)))
 
     print(f"{n:,} direction pairs, {jnp.dtype(dt).name}, {jax.devices()[0].platform}, best of {args.repeat}")

@@ -8,13 +8,11 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pytest
+from test_aps import hemi
 
 import brdffit
 from data_formats.merl import read_merl, synthesize, write_merl
 from data_formats.samples import SampleSet
-
-from test_aps import hemi
 
 VELVET = {"diffuse": [0.3, 0.15, 0.08], "f0": [0.12, 0.1, 0.08], "sigma": 0.8}
 GAUSSIAN = {"diffuse": [0.2, 0.25, 0.3], "f0": [0.6, 0.5, 0.4], "sigma_x": 0.15, "sigma_y": 0.4}

@@ -8,12 +8,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from test_aps import albedo, hemi
 
 from brdffit.models import get_model
 from brdffit.models.cloth import velvet_cloth
 from brdffit.ndf.sheen import GeneralizedVelvet, ImageworksSheen
-
-from test_aps import albedo, hemi
 
 
 def _polar(n=1600, m=8):

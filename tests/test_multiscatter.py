@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from test_aps import albedo, hemi
 
 from brdffit.albedo_table import albedo_table
 from brdffit.coupled_diffuse import coupled_diffuse
@@ -19,8 +20,6 @@ from brdffit.fresnel import schlick
 from brdffit.models import microfacet_specular
 from brdffit.multiscatter import kulla_conty, multiscatter_specular, schlick_average
 from brdffit.ndf import GGX
-
-from test_aps import albedo, hemi
 
 
 @pytest.fixture(scope="module")
@@ -33,8 +32,8 @@ def test_table_matches_independent_albedo_between_nodes(table):
     for alpha in (0.07, 0.33, 0.85):
         ndf = GGX(alpha)
         for theta in np.radians([5.0, 47.0, 78.0]):
-            f1 = jax.jit(lambda wi, wo: microfacet_specular(ndf, partial(schlick, jnp.ones(3)), wi, wo))
-            f0 = jax.jit(lambda wi, wo: microfacet_specular(ndf, partial(schlick, jnp.zeros(3)), wi, wo))
+            f1 = jax.jit(lambda wi, wo, ndf=ndf: microfacet_specular(ndf, partial(schlick, jnp.ones(3)), wi, wo))
+            f0 = jax.jit(lambda wi, wo, ndf=ndf: microfacet_specular(ndf, partial(schlick, jnp.zeros(3)), wi, wo))
             e0, e1 = table.lookup(jnp.asarray(alpha), jnp.asarray(np.cos(theta)))
             assert float(e1) == pytest.approx(albedo(f1, theta)[0], abs=5e-3), (alpha, theta)
             assert float(e0) == pytest.approx(albedo(f0, theta)[0], abs=5e-3), (alpha, theta)

@@ -34,7 +34,13 @@ import jax.numpy as jnp
 from .._math import chi_plus, cos_theta
 from .quadrature import polar_rule
 from .specular import UNCORRELATED
-from .tables import Resolution, hemisphere_average, interp_table, table_directions
+from .tables import (
+    DEFAULT_RESOLUTION,
+    Resolution,
+    hemisphere_average,
+    interp_table,
+    table_directions,
+)
 
 
 class RTable(eqx.Module):
@@ -55,7 +61,7 @@ class RTable(eqx.Module):
 
 
 @eqx.filter_jit
-def build_r_table(dist, table, dtype, res: Resolution = Resolution(), shadowing=UNCORRELATED):
+def build_r_table(dist, table, dtype, res: Resolution = DEFAULT_RESOLUTION, shadowing=UNCORRELATED):
     """``R₀, R₁`` (APS eq. 29) on the ``res.r_grid`` directions; ``p`` is evaluated once on the
     polar rule ``res.r_quad`` and shared by all directions."""
     n_u, n_phi = res.r_grid[0], (1 if table.delta.shape[1] == 1 else res.r_grid[1])

@@ -225,7 +225,7 @@ def satin(sigma_flats=0.1, sigma_ends=0.3, w_flats=0.7, **kw):
     )
 
 
-def v_groove(tilt=np.radians(20.0), sigma=0.1, **kw):
+def v_groove(tilt=0.3490658503988659, sigma=0.1, **kw):  # 20°
     """APS 2000 §6.2: two narrow Gaussians (σ = 0.1) around the facet normals of symmetric
     V-grooves running along ``y``, tilted by ``±tilt`` about ``y`` (the paper's grooves "with the
     angle of 40 degrees" read as facet normals 40° apart: ``tilt = 20°``, the default)."""

@@ -16,10 +16,10 @@ from ..models.registry import Model, Param, register
 from .diffuse import aps_diffuse, aps_diffuse_metal, build_r_table
 from .distributions import AnisotropicGaussian, Velvet, satin, v_groove
 from .specular import CORRELATED, UNCORRELATED, aps_specular
-from .tables import Resolution, build_g_table
+from .tables import DEFAULT_RESOLUTION, Resolution, build_g_table
 
 
-def aps_brdf(dist, f0, diffuse, wi, wo, *, shadowing=UNCORRELATED, resolution=Resolution(), metal=False):
+def aps_brdf(dist, f0, diffuse, wi, wo, *, shadowing=UNCORRELATED, resolution=DEFAULT_RESOLUTION, metal=False):
     """``ρ = ρ_s + ρ_diffuse`` of APS 2000 for the distribution ``dist``, RGB ``(..., 3)``.
 
     Args:
@@ -67,13 +67,13 @@ def _dt(p, *names):
 
 
 def _gaussian(p, wi, wo):
-    dtype, q = _dt(p, "sigma_x", "sigma_y", "f0", "diffuse")
+    _, q = _dt(p, "sigma_x", "sigma_y", "f0", "diffuse")
     dist = AnisotropicGaussian(q["sigma_x"], q["sigma_y"])
     return aps_brdf(dist, q["f0"], q["diffuse"], wi, wo, resolution=ANISO_RESOLUTION)
 
 
 def _velvet(p, wi, wo):
-    dtype, q = _dt(p, "sigma", "f0", "diffuse")
+    _, q = _dt(p, "sigma", "f0", "diffuse")
     return aps_brdf(Velvet(q["sigma"]), q["f0"], q["diffuse"], wi, wo, shadowing=CORRELATED,
                     resolution=ISO_RESOLUTION)
 

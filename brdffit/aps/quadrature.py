@@ -26,7 +26,7 @@ import functools
 import numpy as np
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def gauss_legendre(n: int, lo: float = -1.0, hi: float = 1.0):
     """Gauss–Legendre nodes and weights on ``[lo, hi]`` (NumPy, float64)."""
     x, w = np.polynomial.legendre.leggauss(n)
@@ -34,7 +34,7 @@ def gauss_legendre(n: int, lo: float = -1.0, hi: float = 1.0):
     return lo + half * (x + 1.0), half * w
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def polar_rule(n_theta: int, n_phi: int, lower: bool = False):
     """Nodes ``h`` ``(n_theta*n_phi, 3)`` and weights (solid angle) on the hemisphere ``±h_z > 0``.
 
@@ -65,7 +65,7 @@ def lune_frames(theta_k, phi_k):
     return k, e2, a
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def lune_rule(theta_k: tuple, phi_k: tuple, n_psi: int, n_beta: int, heightfield: bool):
     """Nodes and weights for ``g(k) = ∫_{Ω+(k)} (h·k) p(h) dω`` (APS eq. 18) for many ``k``.
 

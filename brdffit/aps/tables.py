@@ -66,6 +66,9 @@ class Resolution:
                 raise ValueError(f"Resolution.{name} must be odd and >= 3 (Simpson's rule); got {n}")
 
 
+#: The default sizes.
+DEFAULT_RESOLUTION = Resolution()
+
 #: Coarse settings for tests and quick looks (isotropic tables ~1e-3 relative accuracy).
 COARSE = Resolution(n_u=17, n_phi=16, n_psi=16, n_beta=8, n_theta=32, n_phi_q=48, r_grid=(9, 8), r_quad=(32, 48))
 
@@ -137,13 +140,13 @@ class GTable(eqx.Module):
         """``g(k) = k·m̄ + Δ(k)`` (APS eq. 18), ``(..., 3) -> (...)``."""
         return dot(k, self.mean_normal.astype(k.dtype)) + interp_table(self.delta, k)
 
-    def P(self, k):  # noqa: N802
+    def P(self, k):
         """Visibility ``P(k) = (k·n)⟨⟨hn⟩⟩/g(k)`` (APS eq. 25)."""
         g = self.g(k)
         return jnp.where(g > 0, k[..., 2] * self.hn / jnp.where(g > 0, g, 1.0), 0.0)
 
 
-def mean_normal(dist, dtype, res: Resolution = Resolution()):
+def mean_normal(dist, dtype, res: Resolution = DEFAULT_RESOLUTION):
     """``m̄ = ∫ h p(h) dω`` over the support (upper hemisphere, and the lower one unless a heightfield)."""
     total = 0.0
     for lower in (False,) if dist.heightfield else (False, True):
@@ -155,7 +158,7 @@ def mean_normal(dist, dtype, res: Resolution = Resolution()):
 
 
 @eqx.filter_jit
-def build_g_table(dist, dtype, res: Resolution = Resolution()) -> GTable:
+def build_g_table(dist, dtype, res: Resolution = DEFAULT_RESOLUTION) -> GTable:
     """Build :class:`GTable` for ``dist`` from its current parameters (traceable, differentiable).
 
     Compiled once per distribution type, dtype and resolution (``equinox.filter_jit``), so that

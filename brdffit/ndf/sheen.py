@@ -20,7 +20,7 @@ from .numerical import ProjectedAreaTable
 N_THETA, N_QUAD = 64, 32
 
 
-def _velvet_D(alpha, k_amp, wm):  # noqa: N802
+def _velvet_D(alpha, k_amp, wm):
     c2 = wm[..., 2] ** 2
     s2 = jnp.maximum(1.0 - c2, 0.0)
     cot2 = safe_div(c2, s2, fill=1e12)
@@ -28,14 +28,14 @@ def _velvet_D(alpha, k_amp, wm):  # noqa: N802
     return chi_plus(wm[..., 2]) * (1.0 + k_amp * bump) / (jnp.pi * (1.0 + k_amp * alpha**2))
 
 
-def _sheen_D(alpha, wm):  # noqa: N802
+def _sheen_D(alpha, wm):
     s2 = jnp.maximum(1.0 - wm[..., 2] ** 2, 0.0)
     ok = s2 > 1e-30
     pw = jnp.where(ok, jnp.exp(jnp.log(jnp.where(ok, s2, 1.0)) / (2.0 * alpha)), 0.0)
     return chi_plus(wm[..., 2]) * (2.0 + 1.0 / alpha) * pw / (2.0 * jnp.pi)
 
 
-def _table(D, alpha):  # noqa: N803
+def _table(D, alpha):
     return ProjectedAreaTable.build(D, 1.0, n_theta=N_THETA, n_quad=N_QUAD, dtype=alpha.dtype)
 
 
@@ -68,10 +68,10 @@ class GeneralizedVelvet(NDF):
         self.k_amp = jnp.asarray(k_amp, self.alpha.dtype)
         self.table = _velvet_table(self.alpha, self.k_amp)
 
-    def D(self, wm):  # noqa: N802
+    def D(self, wm):
         return _velvet_D(self.alpha, self.k_amp, wm)
 
-    def Lambda(self, w):  # noqa: N802
+    def Lambda(self, w):
         return self.table.Lambda(w)
 
 
@@ -92,8 +92,8 @@ class ImageworksSheen(NDF):
         self.alpha = jnp.maximum(jnp.asarray(alpha), 1e-3)
         self.table = _sheen_table(self.alpha)
 
-    def D(self, wm):  # noqa: N802
+    def D(self, wm):
         return _sheen_D(self.alpha, wm)
 
-    def Lambda(self, w):  # noqa: N802
+    def Lambda(self, w):
         return self.table.Lambda(w)
