@@ -11,7 +11,7 @@ import optimistix as optx
 from ..errors import FitError
 from .result import FitResult
 from .statistics import covariance
-from .transforms import at_bound
+from .transforms import U_CLIP, at_bound
 
 
 def _message(code: int, finite: bool, max_steps_hint: str) -> tuple[str, str]:
@@ -41,6 +41,7 @@ def make_result(*, model, problem, sel, out, u0, costs, x_start, fixed_idx, loss
                 name, times, emit, cov_kind="sandwich"):
     """Assemble the :class:`FitResult` (raises :class:`FitError` on failure if ``throw``)."""
     u, code = np.asarray(out["u"], float), int(out["code"])
+    u = np.clip(u, -U_CLIP, U_CLIP)  # ±inf (a parameter run to its bound) is a valid end point
     finite = bool(np.all(np.isfinite(u)) and np.isfinite(out["cost"]))
     status, message = _message(code, finite, " Increase `max_steps` or start elsewhere.")
     success = finite and code == 0

@@ -26,7 +26,7 @@ from .problem import Problem
 from .statistics import metrics_at
 from .setup import assign, check_within, flat_bounds, flat_log
 from .solvers import COST_NOISE, DEFAULT_SOLVER, make_solver, solver_label
-from .transforms import START_MARGIN, bounds_in_s, to_unconstrained
+from .transforms import START_MARGIN, at_bound, bounds_in_s, to_unconstrained
 
 _PROGRESS = {"fn": None, "start": 0, "floor": 0.0}
 
@@ -77,7 +77,7 @@ def _build_problem(model, loss, samples, fixed, init, bounds, dtype):
     """Flat start/bounds/free set and the data-driven guess (before selecting cells)."""
     lo, hi = flat_bounds(model, bounds)
     x0 = model.flatten({})
-    fixed_idx = assign(model, fixed, x0, "fixed value of")
+    fixed_idx = sorted(set(assign(model, fixed, x0, "fixed value of")))
     check_within(model, x0, lo, hi, fixed_idx, "fixed")
     free = [i for i in range(len(x0)) if i not in set(fixed_idx)]
     if not free:
@@ -106,20 +106,45 @@ def _starts(u0: np.ndarray, multistart: int, seed: int) -> list[np.ndarray]:
     return [u0] + [u0 + rng.normal(0.0, 1.0, size=u0.shape) for _ in range(int(multistart))]
 
 
+def _solve_one(problem, solver, u0, data, floor, max_steps, k):
+    _PROGRESS["start"] = k
+    out = jax.tree.map(np.asarray, _solve(problem, solver, jnp.asarray(u0), data, floor, max_steps))
+    cost = float(out["cost"])
+    ok = int(out["code"]) == 0 and not np.any(np.isnan(out["u"])) and np.isfinite(cost)
+    return out, (not ok, cost if np.isfinite(cost) else np.inf)
+
+
+def _bound_restart(out, key):
+    """A start for a second solve when scalars ended at a bound: those moved back inside.
+
+    A transient can push a small albedo to its bound, where its logistic derivative is too small
+    to bring it back; a genuinely at-bound scalar simply returns there. ``None`` if not needed.
+    """
+    u = np.asarray(out["u"], float)
+    hit = at_bound(u) != 0
+    if key[0] or not np.any(hit):
+        return None
+    p = np.where(u < 0, START_MARGIN, 1.0 - START_MARGIN)
+    return np.where(hit, np.log(p) - np.log1p(-p), u)
+
+
 def _run_starts(problem, solver, starts, data, max_steps):
-    """Solve from every start; return the raw output of the best and the cost of each."""
+    """Solve from every start (and once more from a bound restart); return the raw output of
+    the best and the cost of each start."""
     floor = problem.cost_floor(data, COST_NOISE[problem.compute_dtype])
     _PROGRESS["floor"] = float(floor)
     best, costs = None, []
     for k, u0 in enumerate(starts):
-        _PROGRESS["start"] = k
         _emit("start", start=k, of=len(starts))
-        out = jax.tree.map(np.asarray, _solve(problem, solver, jnp.asarray(u0), data, floor, max_steps))
-        cost = float(out["cost"])
-        ok = int(out["code"]) == 0 and np.all(np.isfinite(out["u"])) and np.isfinite(cost)
-        costs.append(cost if np.isfinite(cost) else float("inf"))
-        _emit("start-done", start=k, cost=cost, steps=int(out["steps"]), success=bool(ok))
-        key = (not ok, costs[-1])
+        out, key = _solve_one(problem, solver, u0, data, floor, max_steps, k)
+        again = _bound_restart(out, key)
+        if again is not None:
+            _emit("restart", start=k, reason="parameters at a bound")
+            out2, key2 = _solve_one(problem, solver, again, data, floor, max_steps, k)
+            if key2 < key:
+                out, key = out2, key2
+        costs.append(float(key[1]))
+        _emit("start-done", start=k, cost=costs[-1], steps=int(out["steps"]), success=not key[0])
         if best is None or key < best[0]:
             best = (key, out)
     return best[1], costs

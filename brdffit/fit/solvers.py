@@ -9,8 +9,23 @@ with exact first derivatives from JAX.
   may diverge far from it.
 * ``dogleg``: :class:`optimistix.Dogleg`, a trust region along the dogleg path.
 
-One part is swapped in the two trust-region solvers (optimistix solvers are built from parts):
-:class:`NoiseTolerantTrustRegion` accepts a step whose actual change of the cost is within
+Parts swapped in (optimistix solvers are built from parts):
+
+* ``lm`` uses :class:`ScaledDampedNewtonDescent`: Marquardt's scaled damping
+  ``(JᵀJ + λ diag(JᵀJ)) δ = -Jᵀr`` (Marquardt 1963; MINPACK's ``lmder``) instead of optimistix's
+  ``(JᵀJ + λI)``. Bounded parameters live in the logistic coordinate ``u``, where a parameter
+  pushed near a bound during the first steps has a tiny column ``∂r/∂u ∝ x - lo``; with ``λI``
+  the damping then freezes it there (observed: a polished-metal fit started at ``α = 0.3``
+  stalled with two diffuse channels at 1e-6), while the scaled damping is invariant to the
+  column scale and lets it come back. The step is also shortened (direction kept) so that no
+  coordinate moves by more than ``MAX_STEP_U = 4`` (a factor ``e⁴`` in ``x - lo`` near a bound):
+  a linearisation that predicts a negative albedo would otherwise send the albedo to 1e-22 in
+  one step, where its derivative is too small for any later step to bring it back. A
+  coordinate beyond ``|u| = U_ACTIVE`` is not pushed further out (an active set): a parameter
+  whose optimum lies beyond its bound stops there instead of drifting a little every step. (A
+  parameter can still be trapped at a bound by a transient; :func:`brdffit.fit.solve.fit`
+  restarts once from the optimum with such parameters moved back inside, and keeps the better.)
+* both trust-region solvers use :class:`NoiseTolerantTrustRegion`, which accepts a step whose actual change of the cost is within
 rounding noise of zero. Optimistix's ``ClassicalTrustRegion`` rejects such steps (their
 predicted reduction is ~1e-20 while the cost, a sum over millions of cells, carries rounding
 noise of ~1e-15 relative), and a rejected step never triggers the convergence test: at an
@@ -34,6 +49,13 @@ SOLVERS = {
 
 DEFAULT_SOLVER = "lm"
 
+#: Largest change of one unconstrained coordinate in one Levenberg–Marquardt step.
+MAX_STEP_U = 4.0
+#: Beyond this |u| (``x`` within ``1e-6`` of the range from a bound, the ``at_bound`` test) a
+#: parameter counts as at its
+#: bound for the step: moves further out are dropped, moves back in are kept.
+U_ACTIVE = 14.0
+
 #: Relative change of the cost treated as rounding noise, by compute dtype.
 COST_NOISE = {"float64": 1e-12, "float32": 1e-6}
 
@@ -55,6 +77,43 @@ class NoiseTolerantTrustRegion(optx.ClassicalTrustRegion):
         return step_size, accept | flat, result, eqx.tree_at(lambda s: s.step_size, new_state, step_size)
 
 
+class _ScaledState(eqx.Module):
+    y: object
+    f_info: object
+
+
+class ScaledDampedNewtonDescent(optx.DampedNewtonDescent):
+    """Levenberg–Marquardt step with Marquardt's diagonal scaling, a step cap and an active set
+    at the bounds (module docstring).
+
+    With ``s = 1/λ`` the trust region's step size, solves ``(s JᵀJ + D²) δ = -s Jᵀr`` with
+    ``D² = diag(JᵀJ)`` (scale-invariant per coordinate; the same system multiplied by
+    ``s``, finite as ``s → 0``). Coordinates beyond ``±U_ACTIVE`` that the step would push further
+    out are held; then ``δ`` is shortened so that no coordinate moves by more than
+    ``MAX_STEP_U``. ``J`` is the solver's small Jacobian (the normal form), materialised.
+    """
+
+    def init(self, y, f_info_struct):
+        return _ScaledState(y, super().init(y, f_info_struct).f_info)
+
+    def query(self, y, f_info, state):
+        del state
+        return _ScaledState(y, f_info)
+
+    def step(self, step_size, state):
+        jac, res = state.f_info.jac.as_matrix(), state.f_info.residual
+        jtj, g = jac.T @ jac, jac.T @ res
+        d2 = jnp.diagonal(jtj)
+        d2 = jnp.maximum(d2, jnp.finfo(d2.dtype).tiny)
+        delta = -jnp.linalg.solve(step_size * jtj + jnp.diag(d2), step_size * g)
+        y = state.y
+        delta = jnp.where(((y < -U_ACTIVE) & (delta < 0)) | ((y > U_ACTIVE) & (delta > 0)), 0.0, delta)
+        delta = delta * jnp.minimum(1.0, MAX_STEP_U / jnp.maximum(jnp.max(jnp.abs(delta)), 1e-300))
+        ok = jnp.all(jnp.isfinite(delta))
+        result = optx.RESULTS.where(ok, optx.RESULTS.successful, optx.RESULTS.nonfinite)
+        return jnp.where(ok, delta, 0.0), result
+
+
 def _quiet(**kwargs):
     del kwargs
 
@@ -68,6 +127,8 @@ def make_solver(name, rtol: float, atol: float, verbose=None, noise: float = 1e-
     except (KeyError, TypeError):
         raise UnknownNameError("solver", str(name), SOLVERS) from None
     solver = cls(rtol=rtol, atol=atol, verbose=verbose or _quiet)
+    if isinstance(solver, optx.LevenbergMarquardt):
+        solver = eqx.tree_at(lambda s: s.descent, solver, ScaledDampedNewtonDescent())
     if isinstance(getattr(solver, "search", None), optx.ClassicalTrustRegion):
         solver = eqx.tree_at(lambda s: s.search, solver, NoiseTolerantTrustRegion(noise=noise))
     return solver

@@ -12,10 +12,12 @@ with ``σ`` the logistic function and ``lo_s, hi_s`` the bounds in ``s`` (``log`
 for a log parameter such as a roughness). Near a bound ``x - lo ∝ e^u``: the map behaves like a
 log transform there, so a diffuse albedo of 0.005 and one of 0.5 are equally easy to fit.
 
-Convention (departure from a plain logistic map): ``u`` is clipped at ``±U`` (``U = 30``). A
-parameter whose optimum lies at or beyond its bound runs to ``|u| = U``, where its derivative
-becomes exactly zero and the solver stops moving it, instead of chasing ``u → ∞`` until
-``max_steps``. Such parameters are reported in ``FitResult.at_bound``.
+Convention: ``u`` is clipped at ``±U`` (``U = 700``) only to keep ``e^{±u}`` finite. A parameter
+whose optimum lies at or beyond its bound runs towards ``|u| → ∞`` until its derivative is
+negligible next to the other columns and the (scaled) damping holds it
+(:class:`brdffit.fit.solvers.ScaledDampedNewtonDescent`). Such parameters are reported in
+``FitResult.at_bound``. A tight clip (an exactly zero derivative at, say, ``|u| = 30``) would
+trap parameters that overshoot towards a bound during the first steps.
 """
 
 from __future__ import annotations
@@ -24,8 +26,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-#: Clip of the unconstrained coordinate (``σ(-30) ≈ 1e-13``).
-U_CLIP = 30.0
+#: Clip of the unconstrained coordinate (keeps ``exp(±u)`` finite).
+U_CLIP = 700.0
 #: A parameter is "at its bound" when ``σ(u)`` is within this of 0 or 1.
 AT_BOUND_TOL = 1e-6
 #: Starting values are moved at least this far inside their bounds (a fraction of the range in
@@ -44,8 +46,10 @@ def bounds_in_s(lo, hi, log):
 
 def to_physical(u, slo, shi, log):
     """``x(u)``: unconstrained → physical (``jnp``; differentiable; ``log`` is a NumPy bool mask)."""
-    p = jax.nn.sigmoid(jnp.clip(u, -U_CLIP, U_CLIP))
-    s = slo + (shi - slo) * p
+    u = jnp.clip(u, -U_CLIP, U_CLIP)
+    w = shi - slo
+    # measured from the nearer bound, so that 1 - σ(u) keeps its precision for large u
+    s = jnp.where(u < 0, slo + w * jax.nn.sigmoid(u), shi - w * jax.nn.sigmoid(-u))
     return jnp.where(log, jnp.exp(jnp.where(log, s, 0.0)), s)
 
 
