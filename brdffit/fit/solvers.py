@@ -60,6 +60,11 @@ MAX_STEP_U = 4.0
 #: bound for the step: moves further out are dropped, moves back in are kept.
 U_ACTIVE = 14.0
 
+#: First trust-region step size ``1/λ`` of ``lm``: with Marquardt's scaling, ``λ = 1`` would halve
+#: the first Gauss–Newton steps; ``λ = 0.01`` starts close to Gauss–Newton and lets rejections
+#: (×0.25 each) damp it when needed.
+INITIAL_STEP_SIZE = 100.0
+
 #: Relative change of the cost treated as rounding noise, by compute dtype.
 COST_NOISE = {"float64": 1e-12, "float32": 1e-6}
 
@@ -69,6 +74,11 @@ class NoiseTolerantTrustRegion(optx.ClassicalTrustRegion):
     ``noise × cost`` (see the module docstring); otherwise identical."""
 
     noise: float = 1e-12
+    initial_step_size: float = 1.0
+
+    def init(self, y, f_info_struct):
+        state = super().init(y, f_info_struct)
+        return eqx.tree_at(lambda s: s.step_size, state, jnp.array(self.initial_step_size))
 
     def step(self, first_step, y, y_eval, f_info, f_eval_info, state):
         step_size, accept, result, new_state = super().step(
@@ -133,10 +143,13 @@ def make_solver(name, rtol: float, atol: float, verbose=None, noise: float = 1e-
     except (KeyError, TypeError):
         raise UnknownNameError("solver", str(name), SOLVERS) from None
     solver = cls(rtol=rtol, atol=atol, verbose=verbose or _quiet)
+    first = 1.0
     if isinstance(solver, optx.LevenbergMarquardt):
         solver = eqx.tree_at(lambda s: s.descent, solver, ScaledDampedNewtonDescent())
+        first = INITIAL_STEP_SIZE
     if isinstance(getattr(solver, "search", None), optx.ClassicalTrustRegion):
-        solver = eqx.tree_at(lambda s: s.search, solver, NoiseTolerantTrustRegion(noise=noise))
+        search = NoiseTolerantTrustRegion(noise=noise, initial_step_size=first)
+        solver = eqx.tree_at(lambda s: s.search, solver, search)
     return solver
 
 
