@@ -32,12 +32,12 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
-import numpy as np  # noqa: E402
-from scipy.optimize import least_squares  # noqa: E402
+import numpy as np
+from scipy.optimize import least_squares
 
-import brdffit  # noqa: E402
-from brdffit.fit.init import guess, measure  # noqa: E402
-from data_formats.merl import synthesize  # noqa: E402
+import brdffit
+from brdffit.fit.init import guess, measure
+from data_formats.merl import synthesize
 
 GGX_TRUTH = {"diffuse": [0.12, 0.08, 0.05], "f0": [0.06, 0.05, 0.04], "alpha": 0.08}
 DISNEY_TRUTH = {"base_color": [0.6, 0.3, 0.15], "metallic": 0.2, "specular": 0.6, "roughness": 0.35}
@@ -116,8 +116,8 @@ def bench_ggx(args):
     model = brdffit.get_model("ggx")
     table = noisy_table("ggx", GGX_TRUTH)
     truth = model.flatten(GGX_TRUTH)
-    call = lambda: brdffit.fit(table, "ggx", precision=args.precision)  # noqa: E731
-    first, res, cold, warm = timed(call, args.repeat)
+    call = lambda: brdffit.fit(table, "ggx", precision=args.precision)
+    _first, res, cold, warm = timed(call, args.repeat)
     print(f"load average: {os.getloadavg()}")
     print(res.summary())
     print(f"ggx brdffit ({args.precision}): cold {cold:.2f} s, warm {warm:.2f} s (median of "
@@ -143,8 +143,8 @@ def bench_disney(args):
     model = brdffit.get_model("disney")
     fixed = {p.name: model.complete(DISNEY_TRUTH)[p.name] for p in model.params
              if p.name not in DISNEY_FREE}
-    call = lambda: brdffit.fit(table, "disney", fixed=fixed, precision=args.precision)  # noqa: E731
-    first, res, cold, warm = timed(call, args.repeat)
+    call = lambda: brdffit.fit(table, "disney", fixed=fixed, precision=args.precision)
+    _first, res, cold, warm = timed(call, args.repeat)
     truth = model.flatten(DISNEY_TRUTH)
     free = [model.flat_names().index(n) for n in res.free]
     print(f"load average: {os.getloadavg()}")

@@ -48,8 +48,8 @@ def fit_twice(table, **kw):
 def two_lobe_table():
     """A polished coating: a sharp bright lobe (α 0.03) over a weak broad one (α 0.2), dark
     diffuse. Peaks reach the thousands (and beyond at grazing angles) over a ~0.01 floor."""
-    truth = dict(diffuse=[0.03, 0.02, 0.01], f0_1=[0.9, 0.8, 0.7], alpha_1=0.03,
-                 f0_2=[0.05] * 3, alpha_2=0.2)
+    truth = {"diffuse": [0.03, 0.02, 0.01], "f0_1": [0.9, 0.8, 0.7], "alpha_1": 0.03,
+                 "f0_2": [0.05] * 3, "alpha_2": 0.2}
     return real_like("two-lobe-ggx", truth), truth
 
 
@@ -76,7 +76,7 @@ def test_why_log_is_the_default_loss(two_lobe_table):
 def test_disney_table_fitted_by_ggx():
     """A Disney dielectric (roughness 0.4, specular 0.5): GGX α = roughness² (Burley 2012 §5.4),
     F0 = 0.08 × specular, and the diffuse albedo is the base color."""
-    truth = dict(base_color=[0.5, 0.3, 0.2], roughness=0.4, metallic=0.0, specular=0.5)
+    truth = {"base_color": [0.5, 0.3, 0.2], "roughness": 0.4, "metallic": 0.0, "specular": 0.5}
     res = fit_twice(real_like("disney", truth))
     assert abs(res.params["alpha"] / 0.4**2 - 1) < 0.05
     np.testing.assert_allclose(res.params["f0"], 0.04, rtol=0.1)
@@ -102,7 +102,7 @@ def test_gtr_long_tail_fitted_by_ggx_lands_on_the_independent_optimum():
     """GTR γ = 1.2 (a longer tail than GGX's γ = 2) fitted by GGX: the optimum found by brdffit
     equals the one scipy finds from another start on the same cells with the same loss, and GGX
     needs a larger α than GTR's to reproduce the tail."""
-    truth = dict(diffuse=[0.1, 0.08, 0.05], f0=[0.05] * 3, alpha=0.1, gamma=1.2)
+    truth = {"diffuse": [0.1, 0.08, 0.05], "f0": [0.05] * 3, "alpha": 0.1, "gamma": 1.2}
     table = real_like("gtr", truth)
     sub = Subsample(3000)
     res = brdffit.fit(table, "ggx", subsample=sub, cutoff=80, seed=1)

@@ -20,30 +20,30 @@ SUB = Subsample(20000)
 #: model -> materials (label, truth). Rough and very shiny, dark and bright, metal and plastic.
 CASES = {
     "ggx": [
-        ("rough-bright-plastic", dict(diffuse=[0.5, 0.4, 0.3], f0=[0.04] * 3, alpha=0.6)),
-        ("polished-metal", dict(diffuse=[0.01] * 3, f0=[0.95, 0.64, 0.54], alpha=0.005)),
-        ("dark-plastic", dict(diffuse=[0.02, 0.01, 0.005], f0=[0.05] * 3, alpha=0.1)),
+        ("rough-bright-plastic", {"diffuse": [0.5, 0.4, 0.3], "f0": [0.04] * 3, "alpha": 0.6}),
+        ("polished-metal", {"diffuse": [0.01] * 3, "f0": [0.95, 0.64, 0.54], "alpha": 0.005}),
+        ("dark-plastic", {"diffuse": [0.02, 0.01, 0.005], "f0": [0.05] * 3, "alpha": 0.1}),
     ],
     "beckmann": [
-        ("paint", dict(diffuse=[0.3, 0.2, 0.1], f0=[0.04] * 3, alpha=0.3)),
-        ("steel", dict(diffuse=[0.01] * 3, f0=[0.9] * 3, alpha=0.01)),
+        ("paint", {"diffuse": [0.3, 0.2, 0.1], "f0": [0.04] * 3, "alpha": 0.3}),
+        ("steel", {"diffuse": [0.01] * 3, "f0": [0.9] * 3, "alpha": 0.01}),
     ],
     "blinn-phong": [
-        ("plastic", dict(diffuse=[0.3, 0.2, 0.1], f0=[0.04] * 3, alpha=0.2)),
-        ("brass", dict(diffuse=[0.02] * 3, f0=[0.8, 0.5, 0.3], alpha=0.02)),
+        ("plastic", {"diffuse": [0.3, 0.2, 0.1], "f0": [0.04] * 3, "alpha": 0.2}),
+        ("brass", {"diffuse": [0.02] * 3, "f0": [0.8, 0.5, 0.3], "alpha": 0.02}),
     ],
     "gtr": [
-        ("long-tail", dict(diffuse=[0.2] * 3, f0=[0.05] * 3, alpha=0.1, gamma=1.2)),
-        ("short-tail-metal", dict(diffuse=[0.05] * 3, f0=[0.5] * 3, alpha=0.05, gamma=3.0)),
+        ("long-tail", {"diffuse": [0.2] * 3, "f0": [0.05] * 3, "alpha": 0.1, "gamma": 1.2}),
+        ("short-tail-metal", {"diffuse": [0.05] * 3, "f0": [0.5] * 3, "alpha": 0.05, "gamma": 3.0}),
     ],
     "two-lobe-ggx": [
-        ("coated", dict(diffuse=[0.1] * 3, f0_1=[0.5, 0.4, 0.3], alpha_1=0.02,
-                        f0_2=[0.1] * 3, alpha_2=0.3)),
+        ("coated", {"diffuse": [0.1] * 3, "f0_1": [0.5, 0.4, 0.3], "alpha_1": 0.02,
+                        "f0_2": [0.1] * 3, "alpha_2": 0.3}),
     ],
     "disney": [
-        ("everything-on", dict(base_color=[0.6, 0.3, 0.15], subsurface=0.3, metallic=0.2,
-                               specular=0.6, specular_tint=0.3, roughness=0.35, anisotropic=0.0,
-                               sheen=0.5, sheen_tint=0.5, clearcoat=0.4, clearcoat_gloss=0.8)),
+        ("everything-on", {"base_color": [0.6, 0.3, 0.15], "subsurface": 0.3, "metallic": 0.2,
+                               "specular": 0.6, "specular_tint": 0.3, "roughness": 0.35, "anisotropic": 0.0,
+                               "sheen": 0.5, "sheen_tint": 0.5, "clearcoat": 0.4, "clearcoat_gloss": 0.8}),
     ],
 }
 #: Disney parameters held at the truth: ``specular_tint`` trades off against ``metallic`` and
@@ -106,7 +106,7 @@ def test_noise_free_recovery_from_default_init(tmp_path_factory, name, label, tr
 def test_noisy_estimates_within_three_standard_errors(tmp_path_factory):
     """2% multiplicative noise: |estimate - truth| ≤ 3 reported standard errors (7 scalars)."""
     name, label = "ggx", "blue-plastic"
-    truth = dict(diffuse=[0.1, 0.2, 0.3], f0=[0.05, 0.04, 0.03], alpha=0.1)
+    truth = {"diffuse": [0.1, 0.2, 0.3], "f0": [0.05, 0.04, 0.03], "alpha": 0.1}
     table = merl_table(tmp_path_factory, name, label, truth, noise=0.02)
     model = brdffit.get_model(name)
     res = brdffit.fit(table, name, subsample=Subsample(5000))
@@ -155,7 +155,7 @@ def test_fixed_parameters_are_honoured_and_others_still_recovered(tmp_path_facto
 def test_at_bound_reporting(tmp_path_factory):
     """A metal with no diffuse term: the diffuse albedo ends at its lower bound (0)."""
     name, label = "ggx", "bare-metal"
-    truth = dict(diffuse=[0.0, 0.0, 0.0], f0=[0.9, 0.7, 0.5], alpha=0.05)
+    truth = {"diffuse": [0.0, 0.0, 0.0], "f0": [0.9, 0.7, 0.5], "alpha": 0.05}
     table = merl_table(tmp_path_factory, name, label, truth)
     res = brdffit.fit(table, name, subsample=SUB)
     assert res.success
@@ -184,7 +184,7 @@ def test_anisotropic_ggx_from_direction_pairs():
                   rng.normal(size=(n, 3)))
     wo[:, 2] = np.abs(wo[:, 2]) + 0.05
     wo /= np.linalg.norm(wo, axis=1, keepdims=True)
-    truth = dict(diffuse=[0.2, 0.15, 0.1], f0=[0.6, 0.5, 0.4], alpha_x=0.05, alpha_y=0.25)
+    truth = {"diffuse": [0.2, 0.15, 0.1], "f0": [0.6, 0.5, 0.4], "alpha_x": 0.05, "alpha_y": 0.25}
     model, f = _evaluator("ggx-aniso")
     rgb = np.asarray(f(model.unflatten(model.flatten(truth)), wi, wo))
     samples = SampleSet(wi, wo, rgb, np.ones(n, bool), name="aniso-pairs")

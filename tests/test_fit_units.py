@@ -17,7 +17,13 @@ from brdffit.fit.losses import RELATIVE_FLOOR, huber_residual
 from brdffit.fit.normal_form import compress, gram, normal_form
 from brdffit.fit.problem import Problem
 from brdffit.fit.setup import flat_log
-from brdffit.fit.transforms import U_CLIP, at_bound, bounds_in_s, to_physical, to_unconstrained
+from brdffit.fit.transforms import (
+    U_CLIP,
+    at_bound,
+    bounds_in_s,
+    to_physical,
+    to_unconstrained,
+)
 from data_formats import SampleSet
 
 RNG = np.random.default_rng(0)
@@ -130,7 +136,7 @@ def test_normal_form_reproduces_cost_gradient_and_gauss_newton_matrix():
     np.testing.assert_allclose(jtj, J.T @ J, rtol=1e-12)
     np.testing.assert_allclose(jtr, J.T @ r, rtol=1e-12)
     # chunked accumulation (4 blocks of 16) equals the single pass
-    s4, jtj4, jtr4 = jax.jit(lambda v, d: gram(_toy_columns, v, d, chunks=4))(u, data)
+    s4, jtj4, _jtr4 = jax.jit(lambda v, d: gram(_toy_columns, v, d, chunks=4))(u, data)
     np.testing.assert_allclose([s4], [s], rtol=1e-12)
     np.testing.assert_allclose(jtj4, jtj, rtol=1e-12)
     rt, R = compress(s, jtj, jtr)
@@ -151,7 +157,7 @@ def test_normal_form_derivative_is_R():
     fn = normal_form(_toy_columns)
     u = jnp.array([1.0, 0.5, 0.2, 0.1])
     d = jnp.array([0.3, -0.1, 0.2, 0.4])
-    (rt, aux), (drt, daux) = jax.jit(lambda v, t: jax.jvp(lambda w: fn(w, (data, 0.0)), (v,), (t,)))(u, d)
+    (_rt, aux), (drt, daux) = jax.jit(lambda v, t: jax.jvp(lambda w: fn(w, (data, 0.0)), (v,), (t,)))(u, d)
     _, R = jax.jit(lambda v, dd: compress(*gram(_toy_columns, v, dd)))(u, data)
     np.testing.assert_allclose(drt[:-1], R @ d, rtol=1e-12)
     assert drt[-1] == 0 and np.all(np.asarray(daux["jtj"]) == 0)

@@ -48,7 +48,7 @@ class Subsample:
         if isinstance(self.size, float) and not isinstance(self.size, bool):
             if not 0.0 < self.size <= 1.0:
                 raise ConfigError(f"subsample fraction must be in (0, 1], got {self.size!r}")
-            return max(1, int(round(self.size * n)))
+            return max(1, round(self.size * n))
         if int(self.size) < 1:
             raise ConfigError(f"subsample size must be a positive count, got {self.size!r}")
         return min(int(self.size), n)

@@ -20,9 +20,9 @@ def _message(code: int, finite: bool, max_steps_hint: str) -> tuple[str, str]:
             "the solver produced non-finite parameters or cost; the result reports the starting "
             "point. Try another `init`, `multistart`, or the `log` loss."
         )
-    names = {int(v._value): k for k, v in optx.RESULTS._name_to_item.items()}  # noqa: SLF001
+    names = {int(v._value): k for k, v in optx.RESULTS._name_to_item.items()}
     status = names.get(code, str(code))
-    text = optx.RESULTS._index_to_message[code] if code else ""  # noqa: SLF001
+    text = optx.RESULTS._index_to_message[code] if code else ""
     if status in ("nonlinear_max_steps_reached", "max_steps_reached"):
         text += max_steps_hint
     return status, text

@@ -58,7 +58,6 @@ class Problem(eqx.Module):
 
     def residual_x(self, x_free, data: FitData):
         """Flat residual as a function of the free scalars in physical units."""
-        dt = jnp.dtype(self.compute_dtype)
         pred = self.predict(x_free, data)
         return self._residual_of_pred(pred, data)
 

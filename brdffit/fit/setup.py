@@ -35,7 +35,7 @@ def assign(model, values, into: np.ndarray, what: str) -> list[int]:
     """Write ``values`` (name → value) into the flat vector ``into``; returns the indices set."""
     touched = []
     for key, value in (values or {}).items():
-        base, idx = _slots(model, str(key))
+        _base, idx = _slots(model, str(key))
         arr = np.asarray(value, float).ravel()
         if arr.size not in (1, len(idx)):
             raise ConfigError(

@@ -23,9 +23,9 @@ from .data import check_enough, select
 from .losses import DEFAULT_LOSS, get_loss
 from .normal_form import normal_form
 from .problem import Problem
-from .statistics import metrics_at
 from .setup import assign, check_within, flat_bounds, flat_log
 from .solvers import COST_NOISE, DEFAULT_SOLVER, make_solver, solver_label
+from .statistics import metrics_at
 from .transforms import START_MARGIN, at_bound, bounds_in_s, to_unconstrained
 
 _PROGRESS = {"fn": None, "start": 0, "floor": 0.0}
@@ -57,11 +57,11 @@ def _solve(problem: Problem, solver, u0, data, floor, max_steps: int):
     aux = sol.state.aux  # JᵀJ and Jᵀdiag(r²)J at sol.value (the last accepted point)
     x, dxdu = jax.jvp(problem.physical, (sol.value,), (jnp.ones_like(sol.value),))
     metrics, cost, m = metrics_at(problem, x, data)
-    return dict(
-        u=sol.value, code=sol.result._value, steps=sol.stats["num_steps"], jtj=aux["jtj"],
-        meat=aux["meat"],
-        dxdu=dxdu, metrics=metrics, cost=cost.astype(u0.dtype), m=m,
-    )
+    return {
+        "u": sol.value, "code": sol.result._value, "steps": sol.stats["num_steps"], "jtj": aux["jtj"],
+        "meat": aux["meat"],
+        "dxdu": dxdu, "metrics": metrics, "cost": cost.astype(u0.dtype), "m": m,
+    }
 
 
 def _default_dtype():
