@@ -299,3 +299,21 @@ def test_non_convergence_throws_or_reports():
     res = brdffit.fit(s, "ggx", max_steps=2, throw=False)
     assert not res.success and res.status == "nonlinear_max_steps_reached"
     assert "max_steps" in res.message and np.all(np.isfinite(res.x))
+
+
+def test_render_merl_fills_the_grid_with_the_fitted_model(small_fit, tmp_path):
+    from data_formats.merl import cell_directions, read_merl, write_merl
+
+    _, res, _ = small_fit
+    shape = (9, 9, 18)
+    table = res.render_merl(shape=shape)
+    wi, wo = cell_directions(shape)
+    model = brdffit.get_model("ggx")
+    p = {k: jnp.asarray(v) for k, v in res.params.items()}
+    expected = np.asarray(_GGX(p, wi.reshape(-1, 3), wo.reshape(-1, 3))).reshape(*shape, 3)
+    ok = table.valid
+    assert table.shape == shape and 0.5 < ok.mean() < 1.0  # cells below the horizon are missing
+    np.testing.assert_allclose(table.rgb[ok], expected[ok], rtol=1e-12)
+    write_merl(tmp_path / "fit.binary", table)
+    np.testing.assert_array_equal(read_merl(tmp_path / "fit.binary").rgb, table.rgb)
+    assert model.name == res.model.name
