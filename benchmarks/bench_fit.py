@@ -36,7 +36,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 import brdffit
-from brdffit.fit.init import guess, measure
+from brdffit.fitting.init import guess, measure
 from data_formats.merl import synthesize
 
 GGX_TRUTH = {"diffuse": [0.12, 0.08, 0.05], "f0": [0.06, 0.05, 0.04], "alpha": 0.08}

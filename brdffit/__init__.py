@@ -3,32 +3,49 @@
 Layers (imports only go downward): :mod:`data_formats` (file formats, NumPy only) →
 :mod:`brdffit._math`, :mod:`brdffit.ndf`, :mod:`brdffit.masking`, :mod:`brdffit.fresnel`,
 :mod:`brdffit.diffuse` (pure ``jnp`` pieces) → :mod:`brdffit.models` (composed models and their
-registry) → fitting and posteriors → :mod:`brdffit.cli`.
+registry) → :mod:`brdffit.fitting` (least squares) and :mod:`brdffit.posterior` (emcee) →
+:mod:`brdffit.cli`.
 
-The library never changes ``jax.config``; call ``jax.config.update("jax_enable_x64", True)``
-yourself for float64 (the CLI and the tests do).
+The names below load their modules on first use (PEP 562), so ``import brdffit`` and
+``brdffit --help`` do not pay for importing JAX. The library never changes ``jax.config``;
+call ``jax.config.update("jax_enable_x64", True)`` yourself for float64 (the CLI and the tests
+do).
 """
 
+from __future__ import annotations
+
+import importlib
+
 from .errors import BrdffitError, ConfigError, FitError, UnknownNameError
-from .models import Model, Param, available_models, get_model, register
-from .fit import FitResult, fit, get_loss
-from .posterior import PosteriorResult, sample_posterior
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "BrdffitError",
-    "ConfigError",
-    "FitError",
-    "FitResult",
-    "PosteriorResult",
-    "Model",
-    "Param",
-    "UnknownNameError",
-    "available_models",
-    "fit",
-    "get_loss",
-    "get_model",
-    "register",
-    "sample_posterior",
-]
+#: Public name → the module that defines it (imported lazily by ``__getattr__``).
+_LAZY = {
+    "Model": ".models",
+    "Param": ".models",
+    "available_models": ".models",
+    "get_model": ".models",
+    "register": ".models",
+    "FitResult": ".fitting",
+    "fit": ".fitting",
+    "get_loss": ".fitting",
+    "PosteriorResult": ".posterior",
+    "sample_posterior": ".posterior",
+}
+
+__all__ = ["BrdffitError", "ConfigError", "FitError", "UnknownNameError", *_LAZY]
+
+
+def __getattr__(name: str):
+    try:
+        module = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module 'brdffit' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

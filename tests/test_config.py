@@ -31,8 +31,8 @@ def test_every_registered_model_has_a_preset(name):
 
 @pytest.mark.parametrize("path", PRESETS, ids=[p.stem for p in PRESETS])
 def test_every_preset_loads_and_names_valid_loss_and_solver(path):
-    from brdffit.fit.losses import LOSSES
-    from brdffit.fit.solvers import SOLVERS
+    from brdffit.fitting.losses import LOSSES
+    from brdffit.fitting.solvers import SOLVERS
 
     opts = load_config(path)
     assert opts.sources == (str(path),) and opts.description

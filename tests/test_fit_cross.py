@@ -13,8 +13,8 @@ import pytest
 from scipy.optimize import least_squares
 
 import brdffit
-from brdffit.fit import Subsample, get_loss
-from brdffit.fit.data import select
+from brdffit.fitting import Subsample, get_loss
+from brdffit.fitting.data import select
 from data_formats.merl import MERLTable, synthesize
 
 SUB = Subsample(20000)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import brdffit
-from brdffit.fit import Subsample
+from brdffit.fitting import Subsample
 from data_formats import SampleSet
 from data_formats.merl import read_merl, synthesize, write_merl
 

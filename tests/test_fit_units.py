@@ -11,13 +11,13 @@ import pytest
 
 import brdffit
 from brdffit.errors import ConfigError, FitError, UnknownNameError
-from brdffit.fit import LOSSES, FitResult, Subsample, get_loss
-from brdffit.fit.data import CHUNK_CELLS, select
-from brdffit.fit.losses import RELATIVE_FLOOR, huber_residual
-from brdffit.fit.normal_form import compress, gram, normal_form
-from brdffit.fit.problem import Problem
-from brdffit.fit.setup import flat_log
-from brdffit.fit.transforms import (
+from brdffit.fitting import LOSSES, FitResult, Subsample, get_loss
+from brdffit.fitting.data import CHUNK_CELLS, select
+from brdffit.fitting.losses import RELATIVE_FLOOR, huber_residual
+from brdffit.fitting.normal_form import compress, gram, normal_form
+from brdffit.fitting.problem import Problem
+from brdffit.fitting.setup import flat_log
+from brdffit.fitting.transforms import (
     U_CLIP,
     at_bound,
     bounds_in_s,

@@ -100,7 +100,7 @@ def options_from(args):
 def _check_names(options) -> None:
     """Loss and solver names resolved now, so a typo fails before the input is read."""
     from ..errors import UnknownNameError
-    from ..fit import SOLVERS, get_loss
+    from ..fitting import SOLVERS, get_loss
 
     if options.loss is not None:
         get_loss(options.loss)
@@ -109,7 +109,7 @@ def _check_names(options) -> None:
 
 
 def run(args) -> int:
-    from ..fit import fit
+    from ..fitting import fit
 
     model, options = options_from(args)
     out, plot, table = (args.out, args.plot, args.table)

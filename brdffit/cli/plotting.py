@@ -52,7 +52,7 @@ def write_figures(data, path, *, model=None, params=None, converged=True, progre
 
 
 def _read_result(path):
-    from ..fit import FitResult
+    from ..fitting import FitResult
 
     p = Path(path)
     if not p.is_file():

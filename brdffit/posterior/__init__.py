@@ -3,30 +3,39 @@
 Public surface: :func:`sample_posterior`, :class:`PosteriorResult`, the prior objects
 (:class:`Uniform`, :class:`LogUniform`, :class:`Normal`), :class:`Diagnostics` and
 :class:`ChainTooShortWarning`. The likelihood and its noise model are documented in
-:mod:`brdffit.posterior.likelihood`.
+:mod:`brdffit.posterior.likelihood`. Names load their modules on first use (PEP 562), so the
+command line's ``--help`` does not import emcee and JAX.
 """
 
-from .diagnostics import ChainTooShortWarning, Diagnostics
-from .priors import LogUniform, Normal, Uniform
-from .result import PosteriorResult
-from .sampler import (
-    DEFAULT_BURN,
-    DEFAULT_STEPS,
-    DEFAULT_SUBSAMPLE,
-    DEFAULT_WALKERS,
-    sample_posterior,
-)
+from __future__ import annotations
 
-__all__ = [
-    "DEFAULT_BURN",
-    "DEFAULT_STEPS",
-    "DEFAULT_SUBSAMPLE",
-    "DEFAULT_WALKERS",
-    "ChainTooShortWarning",
-    "Diagnostics",
-    "LogUniform",
-    "Normal",
-    "PosteriorResult",
-    "Uniform",
-    "sample_posterior",
-]
+import importlib
+
+from .defaults import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_WALKERS
+
+_LAZY = {
+    "DEFAULT_SUBSAMPLE": ".sampler",
+    "sample_posterior": ".sampler",
+    "ChainTooShortWarning": ".diagnostics",
+    "Diagnostics": ".diagnostics",
+    "LogUniform": ".priors",
+    "Normal": ".priors",
+    "Uniform": ".priors",
+    "PosteriorResult": ".result",
+}
+
+__all__ = ["DEFAULT_BURN", "DEFAULT_STEPS", "DEFAULT_WALKERS", *_LAZY]
+
+
+def __getattr__(name: str):
+    try:
+        module = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module 'brdffit.posterior' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

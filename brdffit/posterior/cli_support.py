@@ -19,8 +19,7 @@ import warnings
 from pathlib import Path
 
 from ..errors import ConfigError
-from .diagnostics import ChainTooShortWarning
-from .sampler import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_WALKERS
+from .defaults import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_WALKERS
 
 
 _ONLY_WITH_MCMC = ("walkers", "steps", "burn", "noise", "mcmc_subsample", "chain")
@@ -82,6 +81,7 @@ def run_mcmc(data, fit_result, args, options, write) -> tuple:
     ``write(path, fn)`` writes one output atomically (``fn(tmp_path)`` fills it); ``files``
     lists the paths written; ``warnings`` the diagnostics' messages (also in the summary).
     """
+    from .diagnostics import ChainTooShortWarning
     from .sampler import sample_posterior
 
     paths = output_paths(args)
@@ -103,7 +103,7 @@ def combined_json(fit_result, post) -> str:
     """The fit's JSON with the posterior under ``"posterior"`` (strict JSON)."""
     import json
 
-    from ..fit.result import _json_safe
+    from ..fitting.result import _json_safe
 
     d = json.loads(fit_result.to_json())
     d["posterior"] = post.to_dict()

@@ -1,4 +1,4 @@
-"""From a :class:`~brdffit.fit.FitResult` back to the fit's loss and problem.
+"""From a :class:`~brdffit.fitting.FitResult` back to the fit's loss and problem.
 
 A ``FitResult`` records the loss as a label (``"log"``, ``"log+huber(0.1)"``), the free and
 fixed scalars by flat name and the optimum ``x``; it does not record ``bounds``, ``cutoff`` or
@@ -15,16 +15,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError
-from ..fit.losses import get_loss
-from ..fit.problem import Problem
-from ..fit.setup import flat_bounds, flat_log
-from ..fit.transforms import bounds_in_s
+from ..fitting.losses import get_loss
+from ..fitting.problem import Problem
+from ..fitting.setup import flat_bounds, flat_log
+from ..fitting.transforms import bounds_in_s
 
 _HUBER = re.compile(r"^(?P<base>[a-z]+)\+huber\((?P<delta>[^)]+)\)$")
 
 
 def loss_of(result, loss=None):
-    """The :class:`~brdffit.fit.losses.Loss` of ``result`` (or ``loss`` when given)."""
+    """The :class:`~brdffit.fitting.losses.Loss` of ``result`` (or ``loss`` when given)."""
     if loss is not None:
         return get_loss(loss)
     m = _HUBER.match(result.loss)

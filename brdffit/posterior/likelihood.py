@@ -1,7 +1,7 @@
 r"""The log-posterior handed to emcee: one jitted, vectorized JAX function of the walkers.
 
 Noise model (the issue's choice, stated once). The fit's residual of cell ``k``, channel ``c``
-under the chosen loss (:mod:`brdffit.fit.losses`) is
+under the chosen loss (:mod:`brdffit.fitting.losses`) is
 ``r_kc(θ) = w_kc (g(ρ̂_kc(θ)) - g(ρ_kc))``; the likelihood treats the ``m`` residuals with
 non-zero weight as independent Gaussians of one scale ``σ``:
 
@@ -16,7 +16,7 @@ optimum. With a Huber loss the residual is already Huberized, so the "Gaussian" 
 density (quadratic core, linear tails) — a robust likelihood, on purpose.
 
 ``σ`` is either **fixed** at the least-squares estimate ``s² = Σr²/(m − p)`` (the same ``s²``
-as the fit's covariance, :mod:`brdffit.fit.statistics`, but evaluated on the cells the
+as the fit's covariance, :mod:`brdffit.fitting.statistics`, but evaluated on the cells the
 posterior uses), given as a number, or **sampled** as one more parameter ``sigma`` with a
 log-uniform (Jeffreys) prior on ``[s/100, 100 s]``.
 
@@ -34,8 +34,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError
-from ..fit.data import FitData
-from ..fit.problem import Problem
+from ..fitting.data import FitData
+from ..fitting.problem import Problem
 from .priors import LogUniform, PriorBox
 
 #: The sampled noise scale's prior spans this factor either side of the least-squares ``s``.
@@ -47,9 +47,9 @@ class LogPosterior(eqx.Module):
     """``log p(θ | data)`` up to a constant, for one ``θ`` (free scalars, then ``sigma``).
 
     Attributes:
-        problem: the fit's :class:`~brdffit.fit.problem.Problem` (model, loss, free scalars,
+        problem: the fit's :class:`~brdffit.fitting.problem.Problem` (model, loss, free scalars,
             fixed values); its ``residual_x`` is the residual the likelihood uses.
-        data: the selected cells (:class:`~brdffit.fit.data.FitData`).
+        data: the selected cells (:class:`~brdffit.fitting.data.FitData`).
         prior: the :class:`~.priors.PriorBox` (its arrays become constants of the program).
         sigma: the fixed noise scale (ignored when sampled).
         n_obs: ``m``, the number of residuals with non-zero weight.

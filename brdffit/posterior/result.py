@@ -1,6 +1,6 @@
 """The result of :func:`~brdffit.posterior.sample_posterior`: percentiles, diagnostics, chain.
 
-Vocabulary follows :class:`~brdffit.fit.FitResult`: ``names`` are the model's flat scalar names
+Vocabulary follows :class:`~brdffit.fitting.FitResult`: ``names`` are the model's flat scalar names
 (``f0[0]`` ...), ``free``/``fixed`` say which were sampled; ``params`` holds the posterior
 medians grouped by parameter (a list for RGB), fixed scalars keeping their fixed value.
 ``percentiles`` maps every sampled flat name (and ``sigma`` when the noise scale is sampled) to
@@ -114,7 +114,7 @@ class PosteriorResult:
 
     def to_json(self, path=None, indent: int = 2) -> str:
         """Strict JSON (NaN as ``null``); also written to ``path`` if given."""
-        from ..fit.result import _json_safe
+        from ..fitting.result import _json_safe
 
         text = json.dumps(_json_safe(self.to_dict()), indent=indent)
         if path is not None:

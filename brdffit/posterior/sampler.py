@@ -1,7 +1,7 @@
 """``sample_posterior``: emcee ensemble sampling (differential-evolution moves) around a fit.
 
 The pipeline: least-squares fit (given, or run here) → the fit's data selection, loss and
-parameter bookkeeping (:mod:`brdffit.fit`) → :class:`~.likelihood.LogPosterior` → walkers in a
+parameter bookkeeping (:mod:`brdffit.fitting`) → :class:`~.likelihood.LogPosterior` → walkers in a
 small ball around the optimum → ``emcee.EnsembleSampler(vectorize=True)`` → diagnostics →
 :class:`~.result.PosteriorResult`.
 
@@ -24,10 +24,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError
-from ..fit import fit as run_fit
-from ..fit.data import Subsample, check_enough, select
-from ..fit.result import FitResult
+from ..fitting import fit as run_fit
+from ..fitting.data import Subsample, check_enough, select
+from ..fitting.result import FitResult
 from ..models.registry import get_model
+from .defaults import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_SUBSAMPLE_CELLS, DEFAULT_WALKERS
 from .diagnostics import check, diagnose
 from .likelihood import (
     LogPosterior,
@@ -40,10 +41,7 @@ from .priors import build_prior
 from .from_fit import loss_of, problem_from
 from .result import PERCENTILES, PosteriorResult
 
-DEFAULT_SUBSAMPLE = Subsample(2000, "stratified")
-DEFAULT_WALKERS = 32
-DEFAULT_STEPS = 2500
-DEFAULT_BURN = 500
+DEFAULT_SUBSAMPLE = Subsample(DEFAULT_SUBSAMPLE_CELLS, "stratified")
 #: Start-ball radius in units of each scalar's least-squares standard error.
 BALL = 0.1
 
@@ -213,7 +211,7 @@ def sample_posterior(
 
     Args:
         table: a ``MERLTable`` or ``SampleSet`` (anything with ``.to_samples()``).
-        result_or_model: a :class:`~brdffit.fit.FitResult` (its optimum, free/fixed split and
+        result_or_model: a :class:`~brdffit.fitting.FitResult` (its optimum, free/fixed split and
             loss are used), or a model name / :class:`Model` (fitted here first, on the same
             cells as the posterior, with ``loss``, ``cutoff``, ``bounds``, ``fixed``, ``init``).
         nwalkers, nsteps, burn, thin: the ensemble and the chain (``burn`` steps dropped,

@@ -3,7 +3,7 @@
 The pipeline: select cells (:mod:`.data`) → starting point (:mod:`.init`, or the user's) →
 unconstrained problem (:mod:`.transforms`, :mod:`.problem`) → optimistix solver on the
 Gauss–Newton normal form (:mod:`.normal_form`, :mod:`.solvers`) → covariance and metrics
-(:mod:`.statistics`) → :class:`~brdffit.fit.result.FitResult`.
+(:mod:`.statistics`) → :class:`~brdffit.fitting.result.FitResult`.
 """
 
 from __future__ import annotations
@@ -177,8 +177,8 @@ def fit(
         table: anything with ``.to_samples()`` giving a ``data_formats.SampleSet`` (a
             ``MERLTable``, a ``SampleSet``).
         model: a registry name (``"ggx"``) or a :class:`~brdffit.models.Model`.
-        loss: a name from :data:`brdffit.fit.LOSSES` (``"log"`` default, ``"log+huber"``...) or a
-            :class:`~brdffit.fit.losses.Loss`.
+        loss: a name from :data:`brdffit.fitting.LOSSES` (``"log"`` default, ``"log+huber"``...) or a
+            :class:`~brdffit.fitting.losses.Loss`.
         solver: ``"lm"`` (default), ``"gauss-newton"``, ``"dogleg"``, or an optimistix
             least-squares solver.
         init: name → starting value (overrides the data-driven guess), or a previous
@@ -186,7 +186,7 @@ def fit(
         fixed: name → value of scalars held fixed (``"f0"`` or one component ``"f0[1]"``).
         bounds: name → ``(lo, hi)`` overriding the declared bounds.
         cutoff: drop cells with ``θi`` or ``θo`` above this many degrees (Burley 2012 §4.7).
-        subsample: a cell count, a fraction, or a :class:`~brdffit.fit.data.Subsample`.
+        subsample: a cell count, a fraction, or a :class:`~brdffit.fitting.data.Subsample`.
         seed: for the subsample and the multi-start perturbations.
         multistart: number of extra perturbed starts; the lowest cost wins.
         max_steps, rtol, atol: solver limits (tolerances default to 1e-8 in float64, 1e-5 in
@@ -198,7 +198,7 @@ def fit(
         precision: ``"float64"`` or ``"float32"`` model evaluation (products are accumulated in
             float64 either way when x64 is enabled). Defaults to float64 when x64 is enabled.
         covariance: ``"sandwich"`` (default, robust to heteroscedastic residuals) or ``"gn"``
-            (classical ``s² (JᵀJ)⁻¹``); see :mod:`brdffit.fit.statistics`.
+            (classical ``s² (JᵀJ)⁻¹``); see :mod:`brdffit.fitting.statistics`.
     """
     if covariance not in ("sandwich", "gn"):
         raise UnknownNameError("covariance", str(covariance), ["sandwich", "gn"])

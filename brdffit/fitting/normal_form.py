@@ -58,7 +58,7 @@ def gram(columns: Callable, u, data, chunks: int = 1, meat: bool = False):
     blocks (a ``lax.scan``), so the Jacobian rows of one block stay in cache and the whole
     Jacobian is never in memory. Rows may be float32; the sums are float64 when x64 is enabled.
     With ``meat=True`` a fourth entry ``Jᵀ diag(r²) J`` is accumulated too (for the sandwich
-    covariance, :mod:`brdffit.fit.statistics`).
+    covariance, :mod:`brdffit.fitting.statistics`).
     """
     acc = jnp.promote_types(u.dtype, jnp.float32)
     p = u.shape[0]
@@ -96,7 +96,7 @@ def normal_form(columns: Callable, chunks: int = 1) -> Callable:
     ``columns(u, data)`` returns the flat residual and its Jacobian rows ``(r, J)`` for a block of
     cells (``data`` is split into ``chunks`` blocks, see :func:`gram`). ``args = (data, floor)``:
     ``floor`` is a constant added to the cost ``½‖r̃‖²`` (through ``c``), see
-    :meth:`brdffit.fit.problem.Problem.cost_floor`; it changes no step, gradient or ratio.
+    :meth:`brdffit.fitting.problem.Problem.cost_floor`; it changes no step, gradient or ratio.
 
     ``fn`` returns ``(r̃, aux)`` (use ``has_aux=True``) with ``aux = {"jtj", "meat"}``: ``JᵀJ``
     and ``Jᵀdiag(r²)J`` at ``u``, accumulated in the same pass, for the covariance at the

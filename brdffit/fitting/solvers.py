@@ -1,6 +1,6 @@
 """The solver registry: optimistix's Gauss–Newton family by name.
 
-All three see the Gauss–Newton normal form of the residual (:mod:`brdffit.fit.normal_form`),
+All three see the Gauss–Newton normal form of the residual (:mod:`brdffit.fitting.normal_form`),
 with exact first derivatives from JAX.
 
 * ``lm`` (default): :class:`optimistix.LevenbergMarquardt` with the parts below: damped steps
@@ -23,7 +23,7 @@ Parts swapped in (optimistix solvers are built from parts):
   one step, where its derivative is too small for any later step to bring it back. A
   coordinate beyond ``|u| = U_ACTIVE`` is not pushed further out (an active set): a parameter
   whose optimum lies beyond its bound stops there instead of drifting a little every step. (A
-  parameter can still be trapped at a bound by a transient; :func:`brdffit.fit.solve.fit`
+  parameter can still be trapped at a bound by a transient; :func:`brdffit.fitting.solve.fit`
   restarts once from the optimum with such parameters moved back inside, and keeps the better.
   Known limitation: on a dark material (albedo 0.005) with noise and only 5,000 cells, a
   transient from the default start can still leave one albedo at its bound, at a cost ~10%

@@ -15,7 +15,7 @@ log transform there, so a diffuse albedo of 0.005 and one of 0.5 are equally eas
 Convention: ``u`` is clipped at ``±U`` (``U = 700``) only to keep ``e^{±u}`` finite. A parameter
 whose optimum lies at or beyond its bound runs towards ``|u| → ∞`` until its derivative is
 negligible next to the other columns and the (scaled) damping holds it
-(:class:`brdffit.fit.solvers.ScaledDampedNewtonDescent`). Such parameters are reported in
+(:class:`brdffit.fitting.solvers.ScaledDampedNewtonDescent`). Such parameters are reported in
 ``FitResult.at_bound``. A tight clip (an exactly zero derivative at, say, ``|u| = 30``) would
 trap parameters that overshoot towards a bound during the first steps.
 """

@@ -26,7 +26,7 @@ from .losses import Loss
 
 #: Fewer usable cells than this (times the number of free parameters) is an error.
 MIN_CELLS_PER_PARAM = 3
-#: Cells per block of the Jacobian accumulation (:func:`brdffit.fit.normal_form.gram`); larger
+#: Cells per block of the Jacobian accumulation (:func:`brdffit.fitting.normal_form.gram`); larger
 #: selections are padded with zero-weight cells to a whole number of blocks.
 CHUNK_CELLS = 32768
 
