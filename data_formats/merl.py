@@ -19,6 +19,7 @@ Angles and directions follow :mod:`data_formats.rusinkiewicz` (``z`` is the norm
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import functools
 import os
@@ -581,6 +582,25 @@ def write_merl(path, table: MERLTable) -> None:
 
 #: Lookups run in chunks of this many pairs so that every temporary stays in cache.
 _CHUNK = 32768
+#: Worker threads for lookups of more than one chunk (the cores this process may use, at most 8).
+_THREADS = min(8, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
+
+
+def _over_chunks(run, n: int) -> None:
+    """Call ``run(slice)`` on consecutive chunks of ``range(n)``, on up to :data:`_THREADS` threads.
+
+    The kernels are gathers and elementwise NumPy work, which release the GIL, and their
+    random reads of the table are bound by memory latency: a second core nearly halves the time.
+    Each chunk writes its own slice of the output, so the threads share nothing else.
+    """
+    slices = [slice(s, s + _CHUNK) for s in range(0, n, _CHUNK)]
+    if len(slices) < 2 or _THREADS < 2:
+        for sl in slices:
+            run(sl)
+        return
+    with concurrent.futures.ThreadPoolExecutor(min(_THREADS, len(slices))) as pool:
+        for future in [pool.submit(run, sl) for sl in slices]:
+            future.result()
 
 
 def _nan_angles(theta_h, theta_d, phi_d):
@@ -595,9 +615,11 @@ def _by_angles(kernel, prepared, shape, theta_h, theta_d, phi_d):
     batch = angles[0].shape
     th, td, pd = (a.reshape(-1) for a in angles)
     out = np.empty((th.size, 3))
-    for s in range(0, th.size, _CHUNK):
-        sl = slice(s, s + _CHUNK)
+
+    def run(sl):
         out[sl] = kernel(prepared, shape, th[sl], td[sl], pd[sl])
+
+    _over_chunks(run, th.size)
     return out.reshape(batch + (3,))
 
 
@@ -609,9 +631,11 @@ def _by_dirs(kernel, prepared, shape, wi, wo):
     batch = wi.shape[:-1]
     wi, wo = wi.reshape(-1, 3), wo.reshape(-1, 3)
     out = np.empty((len(wi), 3))
-    for s in range(0, len(wi), _CHUNK):
-        sl = slice(s, s + _CHUNK)
+
+    def run(sl):
         out[sl] = kernel(prepared, shape, *half_diff_from_dirs(wi[sl], wo[sl]))
+
+    _over_chunks(run, len(wi))
     return out.reshape(batch + (3,))
 
 
@@ -694,18 +718,18 @@ def _linear_kernel(grid, shape, th, td, pd):
     j0, j1, fj = _axis_weights(v, n_td)
     k0 = _clamped_floor(w, n_pd)
     fk = np.clip(w - k0, 0.0, 1.0)
-    acc = np.zeros((4, th.size))  # planar (r, g, b, weight of the valid corners)
+    acc = np.zeros((th.size, 4))  # (r, g, b, weight of the valid corners)
+    rec = np.empty((th.size, 4))
     for ii, wgt_i in ((i0, 1.0 - fi), (i1, fi)):
         for jj, wgt_j in ((j0, 1.0 - fj), (j1, fj)):
             row = (ii * n_td + jj) * (n_pd + 1) + k0
             wgt_ij = wgt_i * wgt_j
             for dk, wgt_k in ((0, 1.0 - fk), (1, fk)):
-                rec = np.take(grid, row + dk, axis=0)
-                wgt = wgt_ij * wgt_k
-                for c in range(4):
-                    acc[c] += rec[:, c] * wgt
-    ok = acc[3] > 0.0  # False for NaN weights too
-    out = (acc[:3] / np.where(ok, acc[3], 1.0)).T
+                np.take(grid, row + dk, axis=0, out=rec)
+                rec *= (wgt_ij * wgt_k)[:, None]
+                acc += rec
+    ok = acc[:, 3] > 0.0  # False for NaN weights too
+    out = acc[:, :3] / np.where(ok, acc[:, 3], 1.0)[:, None]
     out[~ok] = np.nan
     return out
 
