@@ -90,11 +90,19 @@ def n_observations(data: FitData) -> int:
     return int(np.count_nonzero(np.asarray(data.sqrt_weight) > 0))
 
 
+@eqx.filter_jit
+def _sum_squares(problem: Problem, x_free, data: FitData):
+    return jnp.sum(jnp.square(problem.residual_x(x_free, data)))
+
+
 def least_squares_sigma(problem: Problem, x_free, data: FitData) -> float:
-    """``s = sqrt(Σr² / (m - p))`` at ``x_free`` on ``data`` (``p`` free scalars)."""
-    r = np.asarray(problem.residual_x(jnp.asarray(x_free), data), float)
+    """``s = sqrt(Σr² / (m - p))`` at ``x_free`` on ``data`` (``p`` free scalars).
+
+    Jitted: run op by op, a model with a numerical Λ (``gtr``) spends seconds compiling each
+    primitive of its quadrature separately (8.5 s measured on 2 cores, against one compile)."""
+    ssq = float(_sum_squares(problem, jnp.asarray(x_free), data))
     dof = max(n_observations(data) - len(problem.free), 1)
-    return float(np.sqrt(np.sum(r**2) / dof))
+    return float(np.sqrt(ssq / dof))
 
 
 def noise_setup(noise, s_hat: float):
