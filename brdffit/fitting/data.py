@@ -96,7 +96,7 @@ class Selection:
     """What was selected: counts, host copies (for the initial guess) and the device data."""
 
     data: FitData
-    index: np.ndarray  # rows of the SampleSet that were kept (static selection)
+    index: np.ndarray  # rows of the SampleSet that were kept, in data order (:func:`interleave`)
     n_total: int
     n_usable: int  # above the horizon and within the cutoff
     n_used: int  # of the selected rows, those with a valid value
@@ -137,6 +137,7 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
         theta_h = np.arccos(np.clip(h[:, 2] / np.linalg.norm(h, axis=1), -1, 1))
         rows = rows[sub.choose(theta_h, np.random.default_rng(seed))]
     chunks, pad = _blocks(len(rows))
+    rows = interleave(rows, chunks)
     n, k = len(rows) + pad, len(rows)
     up = (0.0, 0.0, 1.0)  # padding cells: normal incidence, zero weight
     wi, wo = _gather(wi, rows, n, up, dtype), _gather(wo, rows, n, up, dtype)
@@ -151,6 +152,19 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
     data = FitData(dev[0], dev[1], dev[2], target, dev[3])
     host = (wi[:k], wo[:k], rgb[:k], good[:k])
     return Selection(data, rows, len(samples.wi), n_usable, int(np.count_nonzero(good)), chunks, host)
+
+
+def interleave(rows: np.ndarray, chunks: int) -> np.ndarray:
+    """``rows`` reordered so that each of the ``chunks`` blocks is an even stride through them.
+
+    Block ``j`` holds rows ``j, j + chunks, j + 2 chunks, ...`` (in the order the rows came, the
+    MERL layout's ``θh``-major order): any leading blocks are an evenly spread subset of the
+    table, specular peak included, which the warm start of :func:`brdffit.fitting.solve.fit`
+    fits first. Padding stays at the end; a single block keeps the order.
+    """
+    if chunks == 1:
+        return rows
+    return rows[np.argsort(np.arange(len(rows)) % chunks, kind="stable")]
 
 
 def _blocks(n: int) -> tuple[int, int]:

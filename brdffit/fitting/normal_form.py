@@ -51,14 +51,16 @@ def chunked(data, chunks: int):
     return jax.tree.map(lambda a: a.reshape((chunks, a.shape[0] // chunks) + a.shape[1:]), data)
 
 
-def gram(columns: Callable, u, data, chunks: int = 1, meat: bool = False):
+def gram(columns: Callable, u, data, chunks: int = 1, meat: bool = False, active=None):
     """``(Σ r², JᵀJ, Jᵀr)`` from ``columns(u, data_chunk) -> (r, J)``, chunk by chunk.
 
     ``J`` comes as ``p`` rows of length ``m``. The cells are processed in ``chunks`` equal
-    blocks (a ``lax.scan``), so the Jacobian rows of one block stay in cache and the whole
+    blocks (a loop), so the Jacobian rows of one block stay in cache and the whole
     Jacobian is never in memory. Rows may be float32; the sums are float64 when x64 is enabled.
     With ``meat=True`` a fourth entry ``Jᵀ diag(r²) J`` is accumulated too (for the sandwich
-    covariance, :mod:`brdffit.fitting.statistics`).
+    covariance, :mod:`brdffit.fitting.statistics`). ``active`` (a traced integer, default all)
+    sums over the first ``active`` blocks only: the same compiled program then serves a fit on a
+    leading subset of the blocks (the warm start of :func:`brdffit.fitting.solve.fit`).
     """
     acc = jnp.promote_types(u.dtype, jnp.float32)
     p = u.shape[0]
@@ -70,13 +72,22 @@ def gram(columns: Callable, u, data, chunks: int = 1, meat: bool = False):
         if meat:
             cr = cols * r
             out = out + (carry[3] + cr @ cr.T,)
-        return out, None
+        return out
 
     init = (jnp.zeros((), acc), jnp.zeros((p, p), acc), jnp.zeros((p,), acc))
     init = init + ((jnp.zeros((p, p), acc),) if meat else ())
+    return over_blocks(block, init, data, chunks, active)
+
+
+def over_blocks(block: Callable, init, data, chunks: int, active=None):
+    """``carry = block(carry, data_block)`` over the first ``active`` of ``chunks`` blocks."""
     if chunks == 1:
-        return block(init, data)[0]
-    return jax.lax.scan(block, init, chunked(data, chunks))[0]
+        return block(init, data)
+    blocks = chunked(data, chunks)
+    if active is None:
+        return jax.lax.scan(lambda c, b: (block(c, b), None), init, blocks)[0]
+    take = lambda i: jax.tree.map(lambda a: jax.lax.dynamic_index_in_dim(a, i, keepdims=False), blocks)
+    return jax.lax.fori_loop(0, active, lambda i, c: block(c, take(i)), init)
 
 
 def compress(sum_r2, jtj, jtr):
@@ -94,9 +105,10 @@ def normal_form(columns: Callable, chunks: int = 1) -> Callable:
     """``fn(u, args) -> r̃`` for optimistix, whose derivative is the Gauss–Newton ``J̃``.
 
     ``columns(u, data)`` returns the flat residual and its Jacobian rows ``(r, J)`` for a block of
-    cells (``data`` is split into ``chunks`` blocks, see :func:`gram`). ``args = (data, floor)``:
-    ``floor`` is a constant added to the cost ``½‖r̃‖²`` (through ``c``), see
-    :meth:`brdffit.fitting.problem.Problem.cost_floor`; it changes no step, gradient or ratio.
+    cells (``data`` is split into ``chunks`` blocks, see :func:`gram`). ``args = (data, floor)``
+    or ``(data, floor, active)``: ``floor`` is a constant added to the cost ``½‖r̃‖²`` (through
+    ``c``), see :meth:`brdffit.fitting.problem.Problem.cost_floor`; it changes no step, gradient
+    or ratio. ``active`` restricts the sums to the first blocks (:func:`gram`).
 
     ``fn`` returns ``(r̃, aux)`` (use ``has_aux=True``) with ``aux = {"jtj", "meat"}``: ``JᵀJ``
     and ``Jᵀdiag(r²)J`` at ``u``, accumulated in the same pass, for the covariance at the
@@ -105,8 +117,9 @@ def normal_form(columns: Callable, chunks: int = 1) -> Callable:
     """
 
     def _both(u, args):
-        data, floor = args
-        sum_r2, jtj, jtr, meat = gram(columns, u, data, chunks, meat=True)
+        data, floor, *active = args
+        active = active[0] if active else None
+        sum_r2, jtj, jtr, meat = gram(columns, u, data, chunks, meat=True, active=active)
         rt, rmat = compress(sum_r2 + 2.0 * floor, jtj, jtr)
         return rt, rmat, {"jtj": jtj, "meat": meat}
 

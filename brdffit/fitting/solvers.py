@@ -34,12 +34,19 @@ Parts swapped in (optimistix solvers are built from parts):
   cost, a sum over millions of cells, carries rounding noise of ~1e-15 relative), and a
   rejected step never triggers the convergence test: at an optimum that is already reached, the
   solver would keep evaluating the full table, shrinking the step, for several more iterations.
+* all three are wrapped in :class:`Lookahead`, which applies optimistix's own Cauchy
+  termination test to the step the solver has just *proposed* (``δ`` and its predicted change
+  ``J̃δ`` of the residual) instead of waiting for it to be evaluated: the solve ends at the last
+  evaluated point, whose ``JᵀJ`` and sandwich meat are then exact, and saves the one full-table
+  pass that would only confirm a step smaller than the tolerance (issue 4, "Speed").
 """
 
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 import optimistix as optx
 
 from ..errors import UnknownNameError
@@ -74,11 +81,12 @@ class NoiseTolerantTrustRegion(optx.ClassicalTrustRegion):
     ``noise × cost`` (see the module docstring); otherwise identical."""
 
     noise: float = 1e-12
-    initial_step_size: float = 1.0
+    initial_step_size: jax.Array = 1.0  # an array, so a warm start changes it without a recompile
 
     def init(self, y, f_info_struct):
         state = super().init(y, f_info_struct)
-        return eqx.tree_at(lambda s: s.step_size, state, jnp.array(self.initial_step_size))
+        first = jnp.asarray(self.initial_step_size, state.step_size.dtype)
+        return eqx.tree_at(lambda s: s.step_size, state, first)
 
     def step(self, first_step, y, y_eval, f_info, f_eval_info, state):
         step_size, accept, result, new_state = super().step(
@@ -130,6 +138,59 @@ class ScaledDampedNewtonDescent(optx.DampedNewtonDescent):
         return jnp.clip(delta, -U_CLIP - y, U_CLIP - y), optx.RESULTS.successful
 
 
+def _cauchy(rtol, atol, norm, y, y_diff, f, f_diff):
+    """Optimistix's ``cauchy_termination`` (``optimistix/_misc.py``), restated for arrays."""
+    y_ok = norm(jnp.abs(y_diff) / (atol + rtol * jnp.abs(y))) < 1
+    return y_ok & (norm(jnp.abs(f_diff) / (atol + rtol * jnp.abs(f))) < 1)
+
+
+class Lookahead(optx.AbstractLeastSquaresSolver):
+    """A Gauss–Newton-family solver that also stops when its *next* step is negligible.
+
+    Optimistix's test (``cauchy_termination``) needs ``|Δy| < atol + rtol |y|`` and
+    ``|Δf| < atol + rtol |f|`` for an accepted step, so the last full evaluation of a converged
+    solve only confirms a step below the tolerance. After each accepted step this wrapper
+    applies the same test to the proposed step ``δ = y_eval - y`` and its linear prediction
+    ``Δf = J̃ δ`` (exact for the Gauss–Newton model), and stops at ``y``: the point that was
+    evaluated last, so the ``aux`` (``JᵀJ``, meat) returned with it belongs to the answer. The
+    answer differs from the unwrapped solver's by less than the tolerance (one step ``δ``).
+    Everything else (steps, damping, acceptance) is the inner solver's.
+    """
+
+    inner: optx.AbstractLeastSquaresSolver
+
+    @property
+    def rtol(self):
+        return self.inner.rtol
+
+    @property
+    def atol(self):
+        return self.inner.atol
+
+    @property
+    def norm(self):
+        return self.inner.norm
+
+    def init(self, fn, y, args, options, f_struct, aux_struct, tags):
+        return self.inner.init(fn, y, args, options, f_struct, aux_struct, tags)
+
+    def step(self, fn, y, args, options, state, tags):
+        return self.inner.step(fn, y, args, options, state, tags)
+
+    def terminate(self, fn, y, args, options, state, tags):
+        done, result = self.inner.terminate(fn, y, args, options, state, tags)
+        delta = jax.tree.map(lambda a, b: a - b, state.y_eval, y)
+        f = state.f_info.residual
+        df = state.f_info.jac.mv(delta)
+        small = _cauchy(self.rtol, self.atol, self.norm, y, delta, f, df)
+        fresh = (state.num_steps_since_acceptance == 0) & (state.num_steps > 0)
+        ok = result == optx.RESULTS.successful
+        return done | (small & fresh & ok), result
+
+    def postprocess(self, fn, y, aux, args, options, state, tags, result):
+        return self.inner.postprocess(fn, y, aux, args, options, state, tags, result)
+
+
 def _quiet(**kwargs):
     del kwargs
 
@@ -148,12 +209,20 @@ def make_solver(name, rtol: float, atol: float, verbose=None, noise: float = 1e-
         solver = eqx.tree_at(lambda s: s.descent, solver, ScaledDampedNewtonDescent())
         first = INITIAL_STEP_SIZE
     if isinstance(getattr(solver, "search", None), optx.ClassicalTrustRegion):
-        search = NoiseTolerantTrustRegion(noise=noise, initial_step_size=first)
+        search = NoiseTolerantTrustRegion(noise=noise, initial_step_size=jnp.asarray(first))
         solver = eqx.tree_at(lambda s: s.search, solver, search)
-    return solver
+    return Lookahead(solver)
+
+
+def with_initial_step(solver, step_size):
+    """``solver`` with its trust region starting at ``step_size`` (unchanged if it has none)."""
+    search = getattr(getattr(solver, "inner", None), "search", None)
+    if not isinstance(search, NoiseTolerantTrustRegion) or not np.isfinite(step_size):
+        return solver
+    return eqx.tree_at(lambda s: s.inner.search.initial_step_size, solver, jnp.asarray(step_size))
 
 
 def solver_label(solver) -> str:
     if isinstance(solver, str):
         return solver
-    return type(solver).__name__
+    return type(getattr(solver, "inner", solver)).__name__

@@ -31,29 +31,40 @@ import numpy as np
 
 from .data import FitData
 from .losses import RELATIVE_FLOOR
+from .normal_form import over_blocks
 from .problem import Problem
 
 
-def metrics_at(problem: Problem, x_free, data: FitData):
-    """Error figures over the cells used (mask: non-zero weight): ``(dict, cost, m)``."""
+def _metric_sums(problem: Problem, x_free, data: FitData):
+    """Per-block sums behind :func:`metrics_at`: ``(Σr², m, Σ cos², Σ log², Σ rel)``."""
     pred = problem.predict(x_free, data).astype(data.rgb.dtype)
     r = problem.residual_x(x_free, data).astype(data.rgb.dtype)
     mask = (data.sqrt_weight > 0).astype(data.rgb.dtype)
-    m = jnp.maximum(jnp.sum(mask), 1.0)
     diff = (pred - data.rgb) * mask
-
-    def rms(a):
-        return jnp.sqrt(jnp.sum((a * mask) ** 2) / m)
-
     ci, co = data.wi[:, 2:3], data.wo[:, 2:3]
     log_diff = jnp.log1p(pred * ci) - jnp.log1p(data.rgb * ci)
     rel = jnp.abs(diff) / jnp.maximum(jnp.abs(data.rgb), RELATIVE_FLOOR)
+    return jnp.stack([
+        jnp.sum(r**2), jnp.sum(mask), jnp.sum((diff * ci * co * mask) ** 2),
+        jnp.sum((log_diff * mask) ** 2), jnp.sum(rel * mask),
+    ])
+
+
+def metrics_at(problem: Problem, x_free, data: FitData, chunks: int = 1, active=None):
+    """Error figures over the cells used (mask: non-zero weight): ``(dict, cost, m)``.
+
+    Summed block by block over the first ``active`` of ``chunks`` blocks (all by default), like
+    :func:`brdffit.fitting.normal_form.gram`.
+    """
+    init = jnp.zeros(5, data.rgb.dtype)
+    sums = over_blocks(lambda c, b: c + _metric_sums(problem, x_free, b), init, data, chunks, active)
+    sum_r2, m = sums[0], jnp.maximum(sums[1], 1.0)
     return {
-        "rmse": jnp.sqrt(jnp.sum(r**2) / m),
-        "rmse_cosine": rms(diff * ci * co),
-        "rmse_log": rms(log_diff),
-        "rel_error": jnp.sum(rel * mask) / m,
-    }, 0.5 * jnp.sum(r**2), m
+        "rmse": jnp.sqrt(sum_r2 / m),
+        "rmse_cosine": jnp.sqrt(sums[2] / m),
+        "rmse_log": jnp.sqrt(sums[3] / m),
+        "rel_error": sums[4] / m,
+    }, 0.5 * sum_r2, m
 
 
 def covariance(jtj_u, meat_u, dxdu, sum_r2: float, m: float, keep: np.ndarray, kind: str):
