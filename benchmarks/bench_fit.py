@@ -11,10 +11,13 @@ What it does (issue 4, "Speed"):
    the first call in the process is the cold time (tracing + compilation + solve), then the
    median of ``--repeat`` further calls is the warm time.
 3. Fits the same model, written in plain NumPy, with ``scipy.optimize.least_squares`` (trf,
-   2-point finite differences, bounds, ``x_scale='jac'``) on the same cells, with the same loss
-   (``log``), from the same starting point: what a user would write instead.
-4. Prints times, the speed ratio, both final costs and parameter errors against the truth, and
-   the peak resident memory (``resource.getrusage``) before and after the scipy reference.
+   2-point finite differences, bounds, ``x_scale='jac'``, default tolerances) on the same cells
+   (every valid cell above the horizon: brdffit's default selection, no cutoff, no subsample),
+   with the same loss (``log``), from brdffit's own starting point (``result.init``): what a
+   user would write instead.
+4. Prints times, the speed ratio, both final costs and parameter errors against the truth
+   (relative, and in units of brdffit's standard errors), and the peak resident memory
+   (``resource.getrusage``) before and after the scipy reference.
 5. Fits ``disney`` (identifiable parameters free) on a full Disney table, warm and cold.
 
 The machine may be shared: the script prints the load average next to the timings.
@@ -36,7 +39,6 @@ import numpy as np
 from scipy.optimize import least_squares
 
 import brdffit
-from brdffit.fitting.init import guess, measure
 from data_formats.merl import synthesize
 
 GGX_TRUTH = {"diffuse": [0.12, 0.08, 0.05], "f0": [0.06, 0.05, 0.04], "alpha": 0.08}
@@ -123,19 +125,34 @@ def bench_ggx(args):
     print(f"ggx brdffit ({args.precision}): cold {cold:.2f} s, warm {warm:.2f} s (median of "
           f"{args.repeat}); steps {res.steps}; cost {res.cost:.6g}; "
           f"max rel. param error {param_error(res.x, truth):.2e}; timings {res.timings}")
+    print(f"selection: {res.n_cells} of {res.n_total} cells (valid, above the horizon; no cutoff, "
+          f"no subsample); warm start on {warm_blocks(res.n_cells)}, then the full table")
     print(f"peak RSS after brdffit fits: {peak_rss_mb():.0f} MB")
     if args.no_scipy:
         return
     samples = table.to_samples()
-    good = samples.valid & (samples.wi[:, 2] > 0) & (samples.wo[:, 2] > 0)
-    x0 = model.flatten(guess(model, measure(samples.rgb, samples.wi, samples.wo, good)))
+    x0 = model.flatten(res.init)  # brdffit's own (data-driven) starting point
     sol, t_scipy = scipy_reference(samples, x0)
+    se = np.array([v for k in model.names for v in np.ravel(res.stderr[k])])
     print(f"scipy least_squares: {t_scipy:.2f} s, nfev {sol.nfev}, njev {sol.njev}, "
           f"cost {sol.cost:.6g}, max rel. param error {param_error(sol.x, truth):.2e}, "
           f"status {sol.status}")
+    print(f"max |x - truth| / stderr: brdffit {np.max(np.abs(res.x - truth) / se):.2f}, "
+          f"scipy {np.max(np.abs(sol.x - truth) / se):.2f}")
     print(f"speed ratio scipy / brdffit warm: {t_scipy / warm:.1f}x; cost ratio brdffit/scipy: "
           f"{res.cost / sol.cost:.6f}")
     print(f"peak RSS after scipy: {peak_rss_mb():.0f} MB")
+
+
+def warm_blocks(n_cells: int) -> str:
+    """The warm-start share :func:`brdffit.fit` uses for ``n_cells`` (text for the report)."""
+    from brdffit.fitting.data import CHUNK_CELLS
+    from brdffit.fitting.solve import WARM_FRACTION, WARM_MIN_CHUNKS
+
+    chunks = -(-n_cells // CHUNK_CELLS)
+    if chunks < WARM_MIN_CHUNKS:
+        return "no blocks (table too small)"
+    return f"{max(1, round(chunks * WARM_FRACTION))} of {chunks} blocks of {CHUNK_CELLS} cells"
 
 
 def bench_disney(args):

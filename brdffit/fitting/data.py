@@ -164,7 +164,9 @@ def interleave(rows: np.ndarray, chunks: int) -> np.ndarray:
     """
     if chunks == 1:
         return rows
-    return rows[np.argsort(np.arange(len(rows)) % chunks, kind="stable")]
+    per = -(-len(rows) // chunks)
+    order = np.arange(per * chunks).reshape(per, chunks).T.ravel()
+    return rows[order[order < len(rows)]]
 
 
 def _blocks(n: int) -> tuple[int, int]:
