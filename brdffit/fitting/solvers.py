@@ -179,6 +179,11 @@ class Lookahead(optx.AbstractLeastSquaresSolver):
 
     def terminate(self, fn, y, args, options, state, tags):
         done, result = self.inner.terminate(fn, y, args, options, state, tags)
+        # optimistix passes the iterate from *before* the step here; the accepted point is the
+        # one the descent was last queried at (only ScaledDampedNewtonDescent records it)
+        y = getattr(state.descent_state, "y", None)
+        if y is None:
+            return done, result
         delta = jax.tree.map(lambda a, b: a - b, state.y_eval, y)
         f = state.f_info.residual
         df = state.f_info.jac.mv(delta)
