@@ -32,7 +32,8 @@ Jacobian is never materialised as a whole, and no reverse-mode tape is stored.
 The one difference from running optimistix on the full residual: its Cauchy termination test
 compares successive residual vectors element by element; here it compares successive ``r̃``
 (``R^{-⊤}J^⊤r`` tends to zero at the optimum, ``c`` to the residual norm), together with the
-usual test on the step in ``u``.
+usual test on the step in ``u``. :class:`brdffit.fitting.solvers.Lookahead` applies the same test
+to the step just proposed, so the last full pass is not spent confirming a negligible step.
 """
 
 from __future__ import annotations
