@@ -154,12 +154,6 @@ WARM_MIN_CHUNKS = 8
 #: ... on this fraction of them (at least one block; evenly spread cells, see
 #: :func:`brdffit.fitting.data.interleave`).
 WARM_FRACTION = 1 / 16
-#: First trust-region step size ``1/λ`` of the full-table solve after a warm start (at least):
-#: it starts within its statistical error of the optimum, where the Gauss–Newton step is
-#: right. With the warm stage's own final size (``~1e4``, λ ``~1e-4``) Marquardt's damping
-#: shortened the step along the least determined direction (correlated ``f0``/``alpha``) by
-#: about half, and the full table needed a fourth pass; a failed step still shrinks the region.
-WARM_STEP_SIZE = 1e8
 
 
 def _call(problem, solver, u0, data, floor, max_steps, active):
@@ -189,7 +183,7 @@ def _warm_start(problem, solver, u0, data, floor, max_steps):
     _emit("warm-done", blocks=active, of=problem.chunks, steps=int(out["steps"]))
     if not (np.all(np.isfinite(out["u"])) and np.isfinite(float(out["cost"]))):
         return u0, solver
-    return out["u"], with_initial_step(solver, max(float(out["step_size"]), WARM_STEP_SIZE))
+    return out["u"], with_initial_step(solver, float(out["step_size"]))
 
 
 def _solve_one(problem, solver, u0, data, floor, max_steps, k, warm=True):
