@@ -14,8 +14,7 @@ do).
 
 from __future__ import annotations
 
-import importlib
-
+from ._lazy import lazy_exports
 from .errors import BrdffitError, ConfigError, FitError, UnknownNameError
 
 __version__ = "0.1.0"
@@ -37,15 +36,4 @@ _LAZY = {
 __all__ = ["BrdffitError", "ConfigError", "FitError", "UnknownNameError", *_LAZY]
 
 
-def __getattr__(name: str):
-    try:
-        module = _LAZY[name]
-    except KeyError:
-        raise AttributeError(f"module 'brdffit' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(module, __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

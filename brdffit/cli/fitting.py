@@ -165,15 +165,7 @@ def _plot_paths(plot):
 
 
 def _write_table(result, path, progress) -> None:
-    from .. import get_model
-    from .synth import synthesize_table
-
-    progress(f"rendering the fitted model into {path}")
-    table = synthesize_table(get_model(result.model_name), result.params, name=Path(path).stem)
-    atomic_write(path, lambda tmp: _write_merl(tmp, table))
-
-
-def _write_merl(path, table) -> None:
     from data_formats.merl import write_merl
 
-    write_merl(path, table)
+    progress(f"rendering the fitted model into {path}")
+    write_merl(path, result.render_merl(name=Path(path).stem))  # atomic itself

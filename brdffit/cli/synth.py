@@ -65,23 +65,23 @@ def synthesize_table(model, params, *, noise=0.0, seed=0, name=""):
     """A MERL table of ``model`` with ``params``; below-horizon cells missing."""
     from data_formats.merl import synthesize
 
-    from ._evaluate import evaluate
+    from ..models.evaluate import evaluate_model
 
     rng = np.random.default_rng(seed)
-    return synthesize(lambda wi, wo: _noisy(evaluate(model, params, wi, wo).reshape(
-        np.shape(wi)), noise, rng), name=name)
+    return synthesize(lambda wi, wo: _noisy(evaluate_model(model, params, wi, wo), noise, rng),
+                      name=name)
 
 
 def synthesize_samples(model, params, n, *, noise=0.0, seed=0, name=""):
     from data_formats import SampleSet
 
-    from ._evaluate import evaluate
+    from ..models.evaluate import evaluate_model
 
     if n <= 0:
         raise UsageError(f"--samples {n}: give a positive number of direction pairs")
     rng = np.random.default_rng(seed)
     wi, wo = random_pairs(rng, n)
-    rgb = _noisy(evaluate(model, params, wi, wo), noise, rng)
+    rgb = _noisy(evaluate_model(model, params, wi, wo), noise, rng)
     return SampleSet(wi=wi, wo=wo, rgb=rgb, valid=np.ones(n, bool), name=name)
 
 

@@ -14,7 +14,6 @@ import json
 import math
 from pathlib import Path
 
-import jax
 import numpy as np
 
 from ..models.registry import get_model
@@ -127,13 +126,11 @@ class FitResult:
         """
         from data_formats.merl import MERL_SHAPE, synthesize
 
+        from ..models.evaluate import evaluate_model
+
         fitted = self.model
-        evaluate = jax.jit(lambda wi, wo: fitted(wi, wo))
-
-        def fn(wi, wo):
-            return np.stack([np.asarray(evaluate(a, b)) for a, b in zip(wi, wo)])  # per θh row
-
-        return synthesize(fn, name=name or f"{self.model_name}-fit", shape=shape or MERL_SHAPE)
+        return synthesize(lambda wi, wo: evaluate_model(fitted.model, fitted.params, wi, wo),
+                          name=name or f"{self.model_name}-fit", shape=shape or MERL_SHAPE)
 
     # -- reporting ------------------------------------------------------------------------------
     def summary(self) -> str:

@@ -15,14 +15,10 @@ pairs. Both are reduced here to the two things the figures need:
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 
 import numpy as np
 
-#: Directions evaluated per compiled call; the last chunk is padded to this size.
-CHUNK = 32768
-
-_JIT_CACHE: dict[int, tuple[object, object]] = {}
+from ..models.evaluate import CHUNK, evaluate_model  # noqa: F401  (re-exported for the figures)
 
 
 def is_table(data) -> bool:
@@ -39,48 +35,6 @@ def data_name(data, fallback: str = "measured") -> str:
 
         name = Path(data.path).stem
     return name or fallback
-
-
-def _jitted(model):
-    """``jax.jit`` of ``model.fn``, cached per model function (one compile per model and shape)."""
-    import jax
-
-    key = id(model.fn)
-    hit = _JIT_CACHE.get(key)
-    if hit is None or hit[0] is not model.fn:
-        hit = (model.fn, jax.jit(model.fn))
-        _JIT_CACHE[key] = hit
-    return hit[1]
-
-
-def evaluate_model(model, params: Mapping | None, wi, wo, *, chunk: int = CHUNK) -> np.ndarray:
-    """RGB ``f_r`` of ``model`` with ``params`` at directions ``wi, wo`` ``(..., 3)``: ``(..., 3)``.
-
-    Missing parameters take the model's defaults. Evaluation runs in chunks of ``chunk``
-    directions; padding uses the pair ``(z, z)`` so it never produces NaN. The dtype follows JAX's
-    setting (float64 when the caller enabled ``jax_enable_x64``).
-    """
-    import jax.numpy as jnp
-
-    from ..models import get_model
-
-    model = get_model(model)
-    full = {k: jnp.asarray(np.asarray(v, dtype=float)) for k, v in model.complete(params).items()}
-    fn = _jitted(model)
-    wi, wo = np.asarray(wi, dtype=float), np.asarray(wo, dtype=float)
-    batch = np.broadcast_shapes(wi.shape, wo.shape)[:-1]
-    wi = np.broadcast_to(wi, batch + (3,)).reshape(-1, 3)
-    wo = np.broadcast_to(wo, batch + (3,)).reshape(-1, 3)
-    n = len(wi)
-    out = np.empty((n, 3))
-    pad = np.zeros((chunk, 3))
-    pad[:, 2] = 1.0
-    for start in range(0, n, chunk):
-        m = min(chunk, n - start)
-        a, b = pad.copy(), pad.copy()
-        a[:m], b[:m] = wi[start : start + m], wo[start : start + m]
-        out[start : start + m] = np.asarray(fn(full, jnp.asarray(a), jnp.asarray(b)))[:m]
-    return out.reshape(batch + (3,))
 
 
 def measured_lookup(data, *, max_dist: float = 0.03):

@@ -9,8 +9,7 @@ command line's ``--help`` does not import emcee and JAX.
 
 from __future__ import annotations
 
-import importlib
-
+from .._lazy import lazy_exports
 from .defaults import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_WALKERS
 
 _LAZY = {
@@ -27,15 +26,4 @@ _LAZY = {
 __all__ = ["DEFAULT_BURN", "DEFAULT_STEPS", "DEFAULT_WALKERS", *_LAZY]
 
 
-def __getattr__(name: str):
-    try:
-        module = _LAZY[name]
-    except KeyError:
-        raise AttributeError(f"module 'brdffit.posterior' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(module, __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

@@ -1,0 +1,27 @@
+"""Lazy package exports (PEP 562): names resolve to their modules' attributes on first use."""
+
+from __future__ import annotations
+
+import importlib
+
+
+def lazy_exports(package: str, namespace: dict, names: dict[str, str]):
+    """``(__getattr__, __dir__)`` for ``package`` exporting ``names`` (name → relative module).
+
+    The first access imports the module and stores the value in ``namespace`` (the package's
+    ``globals()``), so later accesses are plain lookups.
+    """
+
+    def __getattr__(name: str):
+        try:
+            module = names[name]
+        except KeyError:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}") from None
+        value = getattr(importlib.import_module(module, package), name)
+        namespace[name] = value
+        return value
+
+    def __dir__():
+        return sorted(set(namespace) | set(names))
+
+    return __getattr__, __dir__
