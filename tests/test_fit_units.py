@@ -14,7 +14,7 @@ from brdffit.errors import ConfigError, FitError, UnknownNameError
 from brdffit.fitting import LOSSES, FitResult, Subsample, get_loss
 from brdffit.fitting.data import CHUNK_CELLS, select
 from brdffit.fitting.losses import RELATIVE_FLOOR, huber_residual
-from brdffit.fitting.normal_form import compress, gram, normal_form
+from brdffit.fitting.normal_form import compress, dense_sums, gram, normal_form
 from brdffit.fitting.problem import Problem
 from brdffit.fitting.setup import flat_log
 from brdffit.fitting.transforms import (
@@ -132,11 +132,13 @@ def test_normal_form_reproduces_cost_gradient_and_gauss_newton_matrix():
     u = jnp.array([1.5, 0.4, 0.3, 0.0])  # at u[3]=0 the u[2], u[3] columns are parallel
     J = jax.jit(jax.jacfwd(_toy_res))(u, data)
     r = _toy_res(u, data)
-    s, jtj, jtr = jax.jit(lambda v, d: gram(_toy_columns, v, d))(u, data)
+    s, jtj, jtr, meat, extra = jax.jit(lambda v, d: gram(dense_sums(_toy_columns), v, d))(u, data)
+    assert list(extra) == [64]
     np.testing.assert_allclose(jtj, J.T @ J, rtol=1e-12)
     np.testing.assert_allclose(jtr, J.T @ r, rtol=1e-12)
     # chunked accumulation (4 blocks of 16) equals the single pass
-    s4, jtj4, _jtr4 = jax.jit(lambda v, d: gram(_toy_columns, v, d, chunks=4))(u, data)
+    np.testing.assert_allclose(meat, (J * r[:, None] ** 2).T @ J, rtol=1e-12)
+    s4, jtj4, _jtr4, _, _ = jax.jit(lambda v, d: gram(dense_sums(_toy_columns), v, d, chunks=4))(u, data)
     np.testing.assert_allclose([s4], [s], rtol=1e-12)
     np.testing.assert_allclose(jtj4, jtj, rtol=1e-12)
     rt, R = compress(s, jtj, jtr)
@@ -154,11 +156,11 @@ def test_normal_form_reproduces_cost_gradient_and_gauss_newton_matrix():
 def test_normal_form_derivative_is_R():
     x = jnp.linspace(0, 3, 40)
     data = (x, jnp.cos(x))
-    fn = normal_form(_toy_columns)
+    fn = normal_form(dense_sums(_toy_columns))
     u = jnp.array([1.0, 0.5, 0.2, 0.1])
     d = jnp.array([0.3, -0.1, 0.2, 0.4])
     (_rt, aux), (drt, daux) = jax.jit(lambda v, t: jax.jvp(lambda w: fn(w, (data, 0.0)), (v,), (t,)))(u, d)
-    _, R = jax.jit(lambda v, dd: compress(*gram(_toy_columns, v, dd)))(u, data)
+    _, R = jax.jit(lambda v, dd: compress(*gram(dense_sums(_toy_columns), v, dd)[:3]))(u, data)
     np.testing.assert_allclose(drt[:-1], R @ d, rtol=1e-12)
     assert drt[-1] == 0 and np.all(np.asarray(daux["jtj"]) == 0)
     J = jax.jit(jax.jacfwd(_toy_res))(u, data)
@@ -167,24 +169,47 @@ def test_normal_form_derivative_is_R():
     np.testing.assert_allclose(aux["meat"], (J * r[:, None] ** 2).T @ J, rtol=1e-12)
 
 
-def test_problem_columns_match_dense_jacobian_with_partly_fixed_rgb():
-    model = brdffit.get_model("ggx")
-    samples = ggx_samples(500)
-    sel = select(samples, get_loss("log"))
-    free = (0, 1, 2, 3, 5, 6)  # f0[1] fixed
+def _problem(model_name, free, x0, loss="log", dtype="float64"):
+    model = brdffit.get_model(model_name)
     log = flat_log(model)
     lo, hi = model.flat_bounds()
     slo, shi = bounds_in_s(lo, hi, log)
-    x0 = model.flatten({"diffuse": [0.3, 0.2, 0.1], "f0": [0.1, 0.2, 0.3], "alpha": 0.2})
-    prob = Problem(model, get_loss("log"), free, tuple(bool(b) for b in log[list(free)]), "float64", 1,
-                   jnp.asarray(x0), jnp.asarray(slo[list(free)]), jnp.asarray(shi[list(free)]))
-    u = jnp.asarray(RNG.normal(size=len(free)))
-    r, cols = jax.jit(lambda p, v, d: p.columns(v, d))(prob, u, sel.data)
-    J = jax.jit(lambda p, v, d: jax.jacfwd(p.residual)(v, d))(prob, u, sel.data)
-    np.testing.assert_allclose(r, jax.jit(lambda p, v, d: p.residual(v, d))(prob, u, sel.data),
-                               rtol=1e-13)
-    np.testing.assert_allclose(cols, J.T, rtol=1e-10, atol=1e-12)
-    assert float(prob.full_vector(prob.physical(u))[4]) == 0.2  # the fixed entry is untouched
+    return Problem(model, get_loss(loss), free, tuple(bool(b) for b in log[list(free)]), dtype, 1,
+                   jnp.asarray(model.flatten(x0)), jnp.asarray(slo[list(free)]),
+                   jnp.asarray(shi[list(free)]))
+
+
+def _dense_reference(prob, u, data):
+    """``(Σr², JᵀJ, Jᵀr, Jᵀdiag(r²)J)`` from the dense Jacobian of ``jax.jacfwd``."""
+    J = np.asarray(jax.jit(lambda p, v, d: jax.jacfwd(p.residual)(v, d))(prob, u, data))
+    r = np.asarray(jax.jit(lambda p, v, d: p.residual(v, d))(prob, u, data))
+    return np.sum(r * r), J.T @ J, J.T @ r, (J * r[:, None] ** 2).T @ J
+
+
+@pytest.mark.parametrize(
+    "model_name, free, x0, local",
+    [
+        # f0[1] fixed: a channel-local RGB parameter with a partial tangent
+        ("ggx", (0, 1, 2, 3, 5, 6), {"diffuse": [0.3, 0.2, 0.1], "f0": [0.1, 0.2, 0.3], "alpha": 0.2},
+         {"diffuse": True, "f0": True, "alpha": False}),
+        # base_color couples the channels (the tint's luminance): one jvp per component
+        ("disney", (0, 1, 2, 3, 5, 6), {"base_color": [0.6, 0.3, 0.15], "metallic": 0.2,
+                                        "roughness": 0.35, "specular_tint": 0.4},
+         {"base_color": False}),
+    ],
+)
+def test_block_sums_match_dense_jacobian(model_name, free, x0, local):
+    prob = _problem(model_name, free, x0)
+    for name, want in local.items():
+        assert prob.model.param(name).per_channel is want, name
+    sel = select(ggx_samples(400), get_loss("log"))
+    u = jnp.asarray(RNG.normal(scale=0.5, size=len(free)))
+    got = jax.jit(lambda p, v, d: p.block_sums(v, d))(prob, u, sel.data)
+    want = _dense_reference(prob, u, sel.data)
+    for g, w in zip(got[:4], want):
+        np.testing.assert_allclose(g, w, rtol=1e-10, atol=1e-12 * np.max(np.abs(w)))
+    assert got[4][0] == np.count_nonzero(np.asarray(sel.data.sqrt_weight))  # m
+    assert float(prob.full_vector(prob.physical(u))[4]) == prob.x_fixed[4]  # the fixed entry
 
 
 # -- data selection ---------------------------------------------------------------------------
@@ -276,6 +301,13 @@ def test_result_fields_progress_and_fixed(small_fit):
     pred = np.asarray(res.model(s.wi, s.wo))
     np.testing.assert_allclose(res.metrics["rel_error"],
                                np.mean(np.abs(pred - s.rgb) / np.maximum(s.rgb, 1e-3)), rtol=1e-9)
+    # the error figures come from the solver's own last pass: they belong to the reported point
+    ci = s.wi[:, 2:3]
+    dlog = np.log1p(pred * ci) - np.log1p(s.rgb * ci)
+    assert res.cost == pytest.approx(0.5 * np.sum(dlog**2), rel=1e-9)
+    assert res.metrics["rmse_log"] == pytest.approx(np.sqrt(np.mean(dlog**2)), rel=1e-9)
+    dcos = (pred - s.rgb) * ci * s.wo[:, 2:3]
+    assert res.metrics["rmse_cosine"] == pytest.approx(np.sqrt(np.mean(dcos**2)), rel=1e-9)
     assert "alpha" in res.summary() and "(fixed)" in res.summary()
 
 

@@ -43,8 +43,14 @@ def aps_brdf(dist, f0, diffuse, wi, wo, *, shadowing=UNCORRELATED, resolution=DE
     return out + aps_diffuse(rtable, diffuse, f0, wi, wo)
 
 
-F0 = Param("f0", (3,), 0.0, 1.0, 0.05, "normal-incidence reflectance f0 (RGB), Schlick (APS eq. 31)")
-DIFFUSE = Param("diffuse", (3,), 0.0, 1.0, 0.5, "diffuse albedo ρ_d (RGB) of the coupled term (APS eq. 30)")
+F0 = Param(
+    "f0", (3,), 0.0, 1.0, 0.05, "normal-incidence reflectance f0 (RGB), Schlick (APS eq. 31)",
+    per_channel=True,
+)
+DIFFUSE = Param(
+    "diffuse", (3,), 0.0, 1.0, 0.5, "diffuse albedo ρ_d (RGB) of the coupled term (APS eq. 30)",
+    per_channel=True,
+)
 SIGMA_BOUNDS = (0.08, 1.0)
 
 #: Table sizes of the registered models (call :func:`aps_brdf` directly for others). Isotropic

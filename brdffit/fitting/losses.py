@@ -89,6 +89,10 @@ def huber_residual(r, delta):
 class Loss:
     """A residual weighting: ``r = weight(ρ) (transform(ρ̂) - transform(ρ))``, optionally Huber.
 
+    ``transform`` and ``weight`` act value by value: channel ``c`` of the residual depends on
+    channel ``c`` of the prediction only (the fitter differentiates per-channel parameters with
+    one forward-mode product on that assumption, see ``Param.per_channel``).
+
     Attributes:
         name: registry name.
         transform: ``g(f, cos_i, cos_o)`` in ``jnp`` (applied to data and predictions).

@@ -24,10 +24,12 @@ exactly the steps, trust-region ratios and damping it would take on the full res
 attached to ``r̃`` with a ``jax.custom_jvp``, so optimistix's ``jax.linearize`` sees a ``p × p``
 Jacobian and its QR/Cholesky work is on tiny matrices.
 
-:math:`J^\top J` and :math:`J^\top r` come from forward mode (one ``jvp`` per free scalar; each
-``jvp`` differentiates the residual with respect to one parameter only, so unrelated parts of the
-model carry no tangent), accumulated in float64 even when the model runs in float32. The
-Jacobian is never materialised as a whole, and no reverse-mode tape is stored.
+:math:`J^\top J` and :math:`J^\top r` come from forward mode: one ``jvp`` per model parameter
+(per free scalar for parameters that couple the colour channels), each with respect to that
+parameter only, so unrelated parts of the model carry no tangent; see
+:meth:`brdffit.fitting.problem.Problem.block_sums`. They are accumulated in float64 even when the
+model runs in float32. The Jacobian is never materialised as a whole, and no reverse-mode tape is
+stored.
 
 The one difference from running optimistix on the full residual: its Cauchy termination test
 compares successive residual vectors element by element; here it compares successive ``r̃``
@@ -52,32 +54,43 @@ def chunked(data, chunks: int):
     return jax.tree.map(lambda a: a.reshape((chunks, a.shape[0] // chunks) + a.shape[1:]), data)
 
 
-def gram(columns: Callable, u, data, chunks: int = 1, meat: bool = False, active=None):
-    """``(Σ r², JᵀJ, Jᵀr)`` from ``columns(u, data_chunk) -> (r, J)``, chunk by chunk.
+def gram(sums: Callable, u, data, chunks: int = 1, active=None):
+    """``(Σ r², JᵀJ, Jᵀr, Jᵀdiag(r²)J, extra)`` summed over the blocks of cells.
 
-    ``J`` comes as ``p`` rows of length ``m``. The cells are processed in ``chunks`` equal
-    blocks (a loop), so the Jacobian rows of one block stay in cache and the whole
-    Jacobian is never in memory. Rows may be float32; the sums are float64 when x64 is enabled.
-    With ``meat=True`` a fourth entry ``Jᵀ diag(r²) J`` is accumulated too (for the sandwich
-    covariance, :mod:`brdffit.fitting.statistics`). ``active`` (a traced integer, default all)
-    sums over the first ``active`` blocks only: the same compiled program then serves a fit on a
-    leading subset of the blocks (the warm start of :func:`brdffit.fitting.solve.fit`).
+    ``sums(u, data_block)`` returns the five for one block (``extra``: a vector of further sums
+    whose first entry is ``m``, the number of residuals with non-zero weight), e.g. :meth:`Problem.block_sums
+    <brdffit.fitting.problem.Problem.block_sums>`, or :func:`dense_sums` for a residual given
+    with its Jacobian rows. The cells are processed in ``chunks`` equal blocks (a loop), so the
+    per-block derivatives stay in cache and the whole Jacobian is never in memory. ``active`` (a
+    traced integer, default all) sums over the first ``active`` blocks only: the same compiled
+    program then serves a fit on a leading subset of the blocks (the warm start of
+    :func:`brdffit.fitting.solve.fit`).
     """
     acc = jnp.promote_types(u.dtype, jnp.float32)
     p = u.shape[0]
+    extra = jax.eval_shape(sums, u, jax.tree.map(lambda a: a[: a.shape[0] // chunks], data))[4]
+    init = (jnp.zeros((), acc), jnp.zeros((p, p), acc), jnp.zeros((p,), acc),
+            jnp.zeros((p, p), acc), jnp.zeros(extra.shape, acc))
 
     def block(carry, chunk):
+        return tuple(c + s.astype(acc) for c, s in zip(carry, sums(u, chunk)))
+
+    return over_blocks(block, init, data, chunks, active)
+
+
+def dense_sums(columns: Callable) -> Callable:
+    """``sums`` for :func:`gram` from ``columns(u, block) -> (r, J)`` (``J`` as ``p`` rows of
+    length ``m``; rows may be float32, the sums are in ``u``'s precision; ``extra = [m]``, every
+    residual counts)."""
+
+    def sums(u, chunk):
+        acc = jnp.promote_types(u.dtype, jnp.float32)
         r, cols = columns(u, chunk)
         r, cols = r.astype(acc), cols.astype(acc)
-        out = (carry[0] + jnp.sum(r * r), carry[1] + cols @ cols.T, carry[2] + cols @ r)
-        if meat:
-            cr = cols * r
-            out = out + (carry[3] + cr @ cr.T,)
-        return out
+        cr = cols * r
+        return jnp.sum(r * r), cols @ cols.T, cols @ r, cr @ cr.T, jnp.full((1,), r.size, acc)
 
-    init = (jnp.zeros((), acc), jnp.zeros((p, p), acc), jnp.zeros((p,), acc))
-    init = init + ((jnp.zeros((p, p), acc),) if meat else ())
-    return over_blocks(block, init, data, chunks, active)
+    return sums
 
 
 def over_blocks(block: Callable, init, data, chunks: int, active=None):
@@ -102,27 +115,30 @@ def compress(sum_r2, jtj, jtr):
     return jnp.concatenate([head, tail[None]]), rmat
 
 
-def normal_form(columns: Callable, chunks: int = 1) -> Callable:
+def normal_form(sums: Callable, chunks: int = 1) -> Callable:
     """``fn(u, args) -> r̃`` for optimistix, whose derivative is the Gauss–Newton ``J̃``.
 
-    ``columns(u, data)`` returns the flat residual and its Jacobian rows ``(r, J)`` for a block of
-    cells (``data`` is split into ``chunks`` blocks, see :func:`gram`). ``args = (data, floor)``
+    ``sums(u, data)`` returns ``(Σ r², JᵀJ, Jᵀr, Jᵀdiag(r²)J, m)`` for a block of cells
+    (``data`` is split into ``chunks`` blocks, see :func:`gram`). ``args = (data, floor)``
     or ``(data, floor, active)``: ``floor`` is a constant added to the cost ``½‖r̃‖²`` (through
     ``c``), see :meth:`brdffit.fitting.problem.Problem.cost_floor`; it changes no step, gradient
     or ratio. ``active`` restricts the sums to the first blocks (:func:`gram`).
 
-    ``fn`` returns ``(r̃, aux)`` (use ``has_aux=True``) with ``aux = {"jtj", "meat"}``: ``JᵀJ``
-    and ``Jᵀdiag(r²)J`` at ``u``, accumulated in the same pass, for the covariance at the
-    optimum. ``fn`` is only meant to be differentiated once, to first order, by the solver (its
+    ``fn`` returns ``(r̃, aux)`` (use ``has_aux=True``) with ``aux = {"jtj", "meat", "sum_r2",
+    "extra", "m"}``: ``JᵀJ`` and ``Jᵀdiag(r²)J`` at ``u``, accumulated in the same pass, for the
+    covariance at the optimum; ``Σ r²`` (without the floor) and the further sums of ``sums``
+    (the error figures); ``m = extra[0]``, the number of weighted residuals (for the statistical
+    convergence test of :class:`brdffit.fitting.solvers.Lookahead`). ``fn`` is only meant to be differentiated once, to first order, by the solver (its
     ``jvp`` is ``J̃ δ``; ``aux`` has zero tangent).
     """
 
     def _both(u, args):
         data, floor, *active = args
         active = active[0] if active else None
-        sum_r2, jtj, jtr, meat = gram(columns, u, data, chunks, meat=True, active=active)
+        sum_r2, jtj, jtr, meat, extra = gram(sums, u, data, chunks, active)
         rt, rmat = compress(sum_r2 + 2.0 * floor, jtj, jtr)
-        return rt, rmat, {"jtj": jtj, "meat": meat}
+        aux = {"jtj": jtj, "meat": meat, "sum_r2": sum_r2, "extra": extra, "m": extra[0]}
+        return rt, rmat, aux
 
     @jax.custom_jvp
     def fn(u, args):

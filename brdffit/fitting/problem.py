@@ -17,6 +17,7 @@ import numpy as np
 from ..models.registry import Model
 from .data import FitData
 from .losses import Loss
+from .statistics import cell_metric_sums
 from .transforms import to_physical
 
 
@@ -89,33 +90,103 @@ class Problem(eqx.Module):
         r = self.loss.residual(pred, data.target.astype(dt), data.sqrt_weight.astype(dt), ci, co)
         return r.reshape(-1)
 
-    def columns_x(self, x_free, data: FitData):
-        """``(r, J)``: the flat residual and its Jacobian rows ``J[k] = ∂r/∂x_k`` (free scalars).
+    def tangent_layout(self) -> tuple[tuple[str, tuple[int, ...], bool], ...]:
+        """Per model parameter with free components: ``(name, free components, per_channel)``.
 
-        One forward-mode ``jvp`` per free scalar, each with respect to one parameter of the
-        model's dict while the others are closed over: the tangent then flows only through
-        the terms that parameter touches (a diffuse albedo's tangent skips the specular lobe).
-        XLA's common-subexpression elimination shares the primal between the ``jvp`` calls.
+        Static (it depends on the model, the loss and which scalars are free only), in
+        declaration order, so the columns come out in the order of the free flat indices.
+        """
+        layout, offset, free = [], 0, set(self.free)
+        for p in self.model.params:
+            comps = tuple(j for j in range(p.size) if offset + j in free)
+            offset += p.size
+            if comps:
+                layout.append((p.name, comps, p.per_channel))
+        return tuple(layout)
+
+    def tangents_x(self, x_free, data: FitData):
+        r"""``(pred, r, fields, where)``: the model ``(n, 3)``, the residual ``(n, 3)`` and the
+        forward-mode tangents the Jacobian is made of.
+
+        Each field ``T_k`` is one ``jvp`` of the residual ``(n, 3)`` with respect to one model
+        parameter, the others closed over (the tangent flows only through the terms that
+        parameter touches: a diffuse albedo's skips the specular lobe). ``where[i] = (k, c)``
+        gives Jacobian column ``i`` (free scalar ``i``): ``∂r/∂x_i = T_k`` restricted to channel
+        ``c``, or all channels for ``c = None``.
+
+        A channel-local RGB parameter (``Param.per_channel``: component ``c`` changes channel
+        ``c`` only; every loss acts channel by channel) needs one ``jvp`` for all its
+        components: with the tangent set to one on every free component, channel ``c`` of
+        ``T_k`` is exactly ``∂r_{·c}/∂x_c``. Any other parameter takes one ``jvp`` per free
+        component. For ``ggx`` this is 3 ``jvp`` s
+        instead of 7. XLA's common-subexpression elimination shares the primal between them.
         """
         dt = jnp.dtype(self.compute_dtype)
         params = self.model.unflatten(self.full_vector(x_free).astype(dt))
-        r = self._residual_of_params(params, data)
-        cols, offset, free = [], 0, set(self.free)
-        for p in self.model.params:
-            comps = [j for j in range(p.size) if offset + j in free]
-            offset += p.size
-            if not comps:
-                continue
+        pred = self.model.fn(params, data.wi.astype(dt), data.wo.astype(dt))
+        r = self._residual_of_pred(pred, data).reshape(-1, 3)
+        fields, where = [], []
+        for name, comps, local in self.tangent_layout():
+            shape = params[name].shape
 
-            def f(v, name=p.name):
-                return self._residual_of_params({**params, name: v}, data)
+            def f(v, name=name):
+                return self._residual_of_params({**params, name: v}, data).reshape(-1, 3)
 
-            basis = jnp.eye(p.size, dtype=dt)[np.asarray(comps)].reshape((len(comps),) + p.shape)
-            cols.append(jax.vmap(lambda t, f=f, v=params[p.name]: jax.jvp(f, (v,), (t,))[1])(basis))
-        return r, jnp.concatenate(cols, axis=0)
+            tangents = [comps] if local else [(c,) for c in comps]
+            for on in tangents:
+                t = np.zeros(int(np.prod(shape, dtype=int)))
+                t[list(on)] = 1.0
+                fields.append(jax.jvp(f, (params[name],), (jnp.asarray(t.reshape(shape), dt),))[1])
+                k = len(fields) - 1
+                where += [(k, c) for c in on] if (local and shape) else [(k, None)]
+        return pred, r, fields, tuple(where)
 
-    def columns(self, u, data: FitData):
-        """``(r, J)`` with respect to the unconstrained ``u`` (chain rule through ``x(u)``)."""
+    def block_sums(self, u, data: FitData):
+        """``(Σ r², JᵀJ, Jᵀr, Jᵀdiag(r²)J, extra)`` of one block of cells, ``J = ∂r/∂u``;
+        ``extra`` holds the error-figure sums (:func:`~brdffit.fitting.statistics.cell_metric_sums`,
+        the number of weighted residuals first).
+
+        Built from the tangent fields of :meth:`tangents_x`: per channel ``c``, the sums
+        ``Σ_n T_k T_l``, ``Σ_n T_k r`` and ``Σ_n T_k T_l r²`` over the cells (``k ≤ l``), then
+        placed into the ``p × p`` matrices by the columns' channel masks. The Jacobian is never
+        formed: for a channel-local parameter its columns would be two-thirds zeros. Products are
+        accumulated in float64 when x64 is enabled, whatever the compute dtype.
+        """
         x, dxdu = jax.jvp(self.physical, (u,), (jnp.ones_like(u),))  # the map is elementwise
-        r, cols = self.columns_x(x, data)
-        return r, cols * dxdu.astype(cols.dtype)[:, None]
+        pred, r, fields, where = self.tangents_x(x, data)
+        acc = jnp.promote_types(u.dtype, jnp.float32)
+        r = r.astype(acc)
+        fields = [t.astype(acc) for t in fields]
+        r2 = r * r
+        pairs = [(k, l) for k in range(len(fields)) for l in range(k, len(fields))]
+        tt = jnp.stack([jnp.sum(fields[k] * fields[l], axis=0) for k, l in pairs])
+        ttr2 = jnp.stack([jnp.sum(fields[k] * fields[l] * r2, axis=0) for k, l in pairs])
+        tr = jnp.stack([jnp.sum(t * r, axis=0) for t in fields])
+        place, place_r = _placement(where, len(fields), pairs)
+        scale = dxdu.astype(acc)
+        outer = scale[:, None] * scale[None, :]
+        jtj = jnp.einsum("ijqc,qc->ij", place, tt) * outer
+        meat = jnp.einsum("ijqc,qc->ij", place, ttr2) * outer
+        jtr = jnp.einsum("ikc,kc->i", place_r, tr) * scale
+        return jnp.sum(r2), jtj, jtr, meat, cell_metric_sums(pred, data).astype(acc)
+
+
+def _placement(where, n_fields: int, pairs):
+    """Constant 0/1 arrays that place per-channel field sums into ``p × p`` (and ``p``) arrays.
+
+    ``place[i, j, q, c] = 1`` when columns ``i`` and ``j`` are fields ``pairs[q]`` (either order)
+    and both include channel ``c``; ``place_r[i, k, c] = 1`` when column ``i`` is field ``k`` on
+    channel ``c``.
+    """
+    p = len(where)
+    mask = np.zeros((p, 3))
+    for i, (_k, c) in enumerate(where):
+        mask[i] = 1.0 if c is None else np.eye(3)[c]
+    index = {pair: q for q, pair in enumerate(pairs)}
+    place = np.zeros((p, p, len(pairs), 3))
+    place_r = np.zeros((p, n_fields, 3))
+    for i, (ki, _) in enumerate(where):
+        place_r[i, ki] = mask[i]
+        for j, (kj, _) in enumerate(where):
+            place[i, j, index[(min(ki, kj), max(ki, kj))]] = mask[i] * mask[j]
+    return place, place_r

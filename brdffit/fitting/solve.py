@@ -34,11 +34,12 @@ from .setup import assign, check_within, flat_bounds, flat_log
 from .solvers import (
     COST_NOISE,
     DEFAULT_SOLVER,
+    EDM_TOL,
     make_solver,
     solver_label,
     with_initial_step,
 )
-from .statistics import metrics_at
+from .statistics import metrics_from
 from .transforms import START_MARGIN, at_bound, bounds_in_s, to_unconstrained
 
 _PROGRESS = {"fn": None, "start": 0, "floor": 0.0, "stage": None}
@@ -89,16 +90,17 @@ def _jitted_solve():
 
 
 def _solve(problem: Problem, solver, u0, data, floor, max_steps: int, active):
-    """One optimistix solve over the first ``active`` blocks of cells, then the Gauss–Newton
-    matrix and the metrics at its end point (``active`` is traced: one compilation serves the
-    warm start on a few blocks and the full-table solve)."""
-    fn = normal_form(problem.columns, problem.chunks)
+    """One optimistix solve over the first ``active`` blocks of cells, with the Gauss–Newton
+    matrix and the error figures at its end point (accumulated in the solver's own passes;
+    ``active`` is traced: one compilation serves the warm start on a few blocks and the
+    full-table solve)."""
+    fn = normal_form(problem.block_sums, problem.chunks)
     sol = optx.least_squares(
         fn, solver, u0, args=(data, floor, active), max_steps=max_steps, throw=False, has_aux=True
     )
-    aux = sol.state.aux  # JᵀJ and Jᵀdiag(r²)J at sol.value (the last accepted point)
-    x, dxdu = jax.jvp(problem.physical, (sol.value,), (jnp.ones_like(sol.value),))
-    metrics, cost, m = metrics_at(problem, x, data, problem.chunks, active)
+    aux = sol.state.aux  # JᵀJ, Jᵀdiag(r²)J and the error sums at sol.value (the last accepted point)
+    _, dxdu = jax.jvp(problem.physical, (sol.value,), (jnp.ones_like(sol.value),))
+    metrics, cost, m = metrics_from(aux["sum_r2"], aux["extra"])
     step = getattr(sol.state.search_state, "step_size", jnp.nan)
     return {
         "u": sol.value, "code": sol.result._value, "steps": sol.stats["num_steps"], "jtj": aux["jtj"],
@@ -245,6 +247,7 @@ def fit(
     max_steps: int = 200,
     rtol: float | None = None,
     atol: float | None = None,
+    edm_tol: float = EDM_TOL,
     throw: bool = True,
     progress=None,
     precision: str | None = None,
@@ -270,6 +273,10 @@ def fit(
         multistart: number of extra perturbed starts; the lowest cost wins.
         max_steps, rtol, atol: solver limits (tolerances default to 1e-8 in float64, 1e-5 in
             float32).
+        edm_tol: also stop when the Gauss–Newton step is below ``√(2 edm_tol)`` standard errors
+            (MINUIT's estimated distance to the minimum; default 5e-5, i.e. 0.01 standard
+            errors; 0 turns the test off and converges to ``rtol``/``atol`` alone); see
+            :class:`brdffit.fitting.solvers.Lookahead`.
         throw: raise :class:`~brdffit.errors.FitError` when the solver does not converge;
             with ``False`` the result carries ``success=False`` and the solver's message.
         progress: ``callback(event, info)`` with events ``setup``, ``start``, ``warm-step`` and
@@ -288,7 +295,9 @@ def fit(
     model, loss_obj = get_model(model), get_loss(loss)
     dtype = precision or _default_dtype()
     rtol, atol = _tolerances(rtol, atol, dtype)
-    opt = make_solver(solver, rtol, atol, _verbose_hook if progress else None, COST_NOISE[dtype])
+    opt = make_solver(
+        solver, rtol, atol, _verbose_hook if progress else None, COST_NOISE[dtype], edm_tol
+    )
     samples = table.to_samples()
     x0, lo, hi, fixed_idx, free = _build_problem(model, loss_obj, samples, fixed, init, bounds, dtype)
     sel = select(samples, loss_obj, cutoff=cutoff, subsample=subsample, seed=seed, dtype=dtype)

@@ -36,9 +36,12 @@ Parts swapped in (optimistix solvers are built from parts):
   solver would keep evaluating the full table, shrinking the step, for several more iterations.
 * all three are wrapped in :class:`Lookahead`, which applies optimistix's own Cauchy
   termination test to the step the solver has just *proposed* (``δ`` and its predicted change
-  ``J̃δ`` of the residual) instead of waiting for it to be evaluated: the solve ends at the last
-  evaluated point, whose ``JᵀJ`` and sandwich meat are then exact, and saves the one full-table
-  pass that would only confirm a step smaller than the tolerance (issue 4, "Speed").
+  ``J̃δ`` of the residual) instead of waiting for it to be evaluated, and also stops when the
+  Gauss–Newton step from the last evaluated point is below 0.01 standard errors (MINUIT's
+  "estimated distance to minimum"): the solve ends at the last evaluated point, whose ``JᵀJ``
+  and sandwich meat are then exact, and saves the full-table passes that would only confirm
+  a step that is negligible against the tolerance or against the parameters' uncertainty
+  (issue 4, "Speed").
 """
 
 from __future__ import annotations
@@ -71,6 +74,10 @@ U_ACTIVE = 14.0
 #: the first Gauss–Newton steps; ``λ = 0.01`` starts close to Gauss–Newton and lets rejections
 #: (×0.25 each) damp it when needed.
 INITIAL_STEP_SIZE = 100.0
+
+#: The statistical convergence test of :class:`Lookahead`: stop when the Gauss–Newton step is
+#: below ``√(2·EDM_TOL) = 0.01`` standard errors.
+EDM_TOL = 5e-5
 
 #: Relative change of the cost treated as rounding noise, by compute dtype.
 COST_NOISE = {"float64": 1e-12, "float32": 1e-6}
@@ -145,19 +152,38 @@ def _cauchy(rtol, atol, norm, y, y_diff, f, f_diff):
 
 
 class Lookahead(optx.AbstractLeastSquaresSolver):
-    """A Gauss–Newton-family solver that also stops when its *next* step is negligible.
+    r"""A Gauss–Newton-family solver that also stops when its *next* step is negligible.
 
-    Optimistix's test (``cauchy_termination``) needs ``|Δy| < atol + rtol |y|`` and
-    ``|Δf| < atol + rtol |f|`` for an accepted step, so the last full evaluation of a converged
-    solve only confirms a step below the tolerance. After each accepted step this wrapper
-    applies the same test to the proposed step ``δ = y_eval - y`` and its linear prediction
-    ``Δf = J̃ δ`` (exact for the Gauss–Newton model), and stops at ``y``: the point that was
-    evaluated last, so the ``aux`` (``JᵀJ``, meat) returned with it belongs to the answer. The
-    answer differs from the unwrapped solver's by less than the tolerance (one step ``δ``).
+    Two tests, applied after each accepted step at the point ``y`` just evaluated; either ends
+    the solve at ``y``, whose ``aux`` (``JᵀJ``, meat) then belongs to the answer:
+
+    * **Cauchy** (optimistix's ``cauchy_termination``, which needs ``|Δy| < atol + rtol |y|`` and
+      ``|Δf| < atol + rtol |f|`` for an accepted step, so the last full evaluation of a converged
+      solve only confirms a step below the tolerance): the same test on the step just proposed,
+      ``δ = y_eval - y``, and its linear prediction ``Δf = J̃ δ`` (exact for the Gauss–Newton
+      model). The answer differs from the unwrapped solver's by less than the tolerance.
+    * **Statistical** (``edm_tol``; needs the normal form's ``aux["m"]``): the undamped
+      Gauss–Newton step from ``y`` is shorter than ``√(2 edm_tol)`` standard errors in the
+      Mahalanobis norm. With ``r̃ = (R^{-⊤}Jᵀr, c)`` (:mod:`brdffit.fitting.normal_form`) the
+      step is ``δ_GN = -(JᵀJ)^+ Jᵀr`` and
+
+      .. math:: \mathrm{EDM} = \frac{\delta_{GN}^\top J^\top J\,\delta_{GN}}{2 s^2}
+                = \frac{\|\tilde r_{1..p}\|^2}{2 s^2}, \qquad s^2 = \frac{\|\tilde r\|^2}{m - p},
+
+      the estimated distance to the minimum in units where one standard error costs ``½``
+      (MINUIT's EDM: F. James, M. Roos, *Comput. Phys. Commun.* 10 (1975) 343; its ``migrad``
+      stops at ``EDM < 2·10⁻⁴``, i.e. 0.02 standard errors). The default ``EDM_TOL = 5·10⁻⁵``
+      stops within 0.01 standard errors of the optimum of the local model, independent of the
+      damping of the proposed step. For an exact fit (cost at its rounding floor) ``s`` is at
+      rounding level and only the Cauchy test can end the solve. On the 1.1 M-cell benchmark
+      table (``benchmarks/bench_fit.py``) the second full-table pass has ``EDM ≈ 10⁻⁶``: the
+      third pass, which changed the cost by 4·10⁻¹¹ of 79, is saved.
+
     Everything else (steps, damping, acceptance) is the inner solver's.
     """
 
     inner: optx.AbstractLeastSquaresSolver
+    edm_tol: float = 0.0
 
     @property
     def rtol(self):
@@ -188,6 +214,9 @@ class Lookahead(optx.AbstractLeastSquaresSolver):
         f = state.f_info.residual
         df = state.f_info.jac.mv(delta)
         small = _cauchy(self.rtol, self.atol, self.norm, y, delta, f, df)
+        m = state.aux.get("m") if isinstance(state.aux, dict) else None
+        if m is not None and self.edm_tol > 0:
+            small = small | (edm(f, m, y.shape[0]) < self.edm_tol)
         fresh = (state.num_steps_since_acceptance == 0) & (state.num_steps > 0)
         ok = result == optx.RESULTS.successful
         return done | (small & fresh & ok), result
@@ -196,12 +225,22 @@ class Lookahead(optx.AbstractLeastSquaresSolver):
         return self.inner.postprocess(fn, y, aux, args, options, state, tags, result)
 
 
+def edm(rt, m, p: int):
+    """MINUIT's estimated distance to the minimum from the normal-form residual ``r̃`` (length
+    ``p + 1``) and ``m`` weighted residuals: ``‖r̃_{1..p}‖² (m - p) / (2‖r̃‖²)`` (:class:`Lookahead`)."""
+    head = jnp.sum(rt[:-1] ** 2)
+    total = jnp.maximum(jnp.sum(rt**2), jnp.finfo(rt.dtype).tiny)
+    return 0.5 * head * jnp.maximum(m - p, 1.0) / total
+
+
 def _quiet(**kwargs):
     del kwargs
 
 
-def make_solver(name, rtol: float, atol: float, verbose=None, noise: float = 1e-12):
-    """An optimistix solver from a registry name (or pass an optimistix solver through)."""
+def make_solver(name, rtol: float, atol: float, verbose=None, noise: float = 1e-12,
+                edm_tol: float = EDM_TOL):
+    """An optimistix solver from a registry name (or pass an optimistix solver through), wrapped
+    in :class:`Lookahead` with the statistical test ``edm_tol`` (0 turns it off)."""
     if isinstance(name, optx.AbstractLeastSquaresSolver):
         return name
     try:
@@ -216,7 +255,7 @@ def make_solver(name, rtol: float, atol: float, verbose=None, noise: float = 1e-
     if isinstance(getattr(solver, "search", None), optx.ClassicalTrustRegion):
         search = NoiseTolerantTrustRegion(noise=noise, initial_step_size=jnp.asarray(first))
         solver = eqx.tree_at(lambda s: s.search, solver, search)
-    return Lookahead(solver)
+    return Lookahead(solver, float(edm_tol))
 
 
 def with_initial_step(solver, step_size):

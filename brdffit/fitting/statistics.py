@@ -31,39 +31,38 @@ import numpy as np
 
 from .data import FitData
 from .losses import RELATIVE_FLOOR
-from .normal_form import over_blocks
-from .problem import Problem
 
+def cell_metric_sums(pred, data: FitData):
+    """Sums over one block of cells behind :func:`metrics_from`: ``m`` (residuals with non-zero
+    weight), ``Σ (Δρ cosθi cosθo)²``, ``Σ (Δ log(1 + ρ cosθi))²``, ``Σ |Δρ|/max(ρ, 10⁻³)``.
 
-def _metric_sums(problem: Problem, x_free, data: FitData):
-    """Per-block sums behind :func:`metrics_at`: ``(Σr², m, Σ cos², Σ log², Σ rel)``."""
-    pred = problem.predict(x_free, data).astype(data.rgb.dtype)
-    r = problem.residual_x(x_free, data).astype(data.rgb.dtype)
-    mask = (data.sqrt_weight > 0).astype(data.rgb.dtype)
+    ``m`` comes first: :func:`brdffit.fitting.normal_form.gram` and the solver's statistical
+    test read it there. ``pred`` is the model's ``f_r`` ``(n, 3)`` from the normal form's pass
+    (:meth:`brdffit.fitting.problem.Problem.block_sums`), so the figures at the optimum cost no
+    pass of their own.
+    """
+    dt = jnp.promote_types(data.rgb.dtype, jnp.float32)
+    pred = pred.astype(dt)
+    mask = (data.sqrt_weight > 0).astype(dt)
     diff = (pred - data.rgb) * mask
-    ci, co = data.wi[:, 2:3], data.wo[:, 2:3]
+    ci, co = data.wi[:, 2:3].astype(dt), data.wo[:, 2:3].astype(dt)
     log_diff = jnp.log1p(pred * ci) - jnp.log1p(data.rgb * ci)
     rel = jnp.abs(diff) / jnp.maximum(jnp.abs(data.rgb), RELATIVE_FLOOR)
     return jnp.stack([
-        jnp.sum(r**2), jnp.sum(mask), jnp.sum((diff * ci * co * mask) ** 2),
-        jnp.sum((log_diff * mask) ** 2), jnp.sum(rel * mask),
+        jnp.sum(mask), jnp.sum((diff * ci * co) ** 2), jnp.sum((log_diff * mask) ** 2),
+        jnp.sum(rel * mask),
     ])
 
 
-def metrics_at(problem: Problem, x_free, data: FitData, chunks: int = 1, active=None):
-    """Error figures over the cells used (mask: non-zero weight): ``(dict, cost, m)``.
-
-    Summed block by block over the first ``active`` of ``chunks`` blocks (all by default), like
-    :func:`brdffit.fitting.normal_form.gram`.
-    """
-    init = jnp.zeros(5, data.rgb.dtype)
-    sums = over_blocks(lambda c, b: c + _metric_sums(problem, x_free, b), init, data, chunks, active)
-    sum_r2, m = sums[0], jnp.maximum(sums[1], 1.0)
+def metrics_from(sum_r2, sums):
+    """Error figures over the cells used (non-zero weight): ``(dict, cost, m)`` from ``Σ r²`` and
+    the :func:`cell_metric_sums` of all blocks."""
+    m = jnp.maximum(sums[0], 1.0)
     return {
         "rmse": jnp.sqrt(sum_r2 / m),
-        "rmse_cosine": jnp.sqrt(sums[2] / m),
-        "rmse_log": jnp.sqrt(sums[3] / m),
-        "rel_error": sums[4] / m,
+        "rmse_cosine": jnp.sqrt(sums[1] / m),
+        "rmse_log": jnp.sqrt(sums[2] / m),
+        "rel_error": sums[3] / m,
     }, 0.5 * sum_r2, m
 
 

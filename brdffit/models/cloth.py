@@ -45,14 +45,15 @@ def sheen_lobe_imageworks(ndf, color, wi, wo):
     return jnp.asarray(color) * microfacet_specular(ndf, lambda c: jnp.ones_like(c)[..., None], wi, wo)
 
 
-DIFFUSE = Param("diffuse", (3,), 0.0, 1.0, 0.3, "subsurface albedo ρ_ss (RGB)")
+DIFFUSE = Param("diffuse", (3,), 0.0, 1.0, 0.3, "subsurface albedo ρ_ss (RGB)", per_channel=True)
 
 CLOTH_VELVET = register(Model(
     name="cloth-velvet",
     description="cloth of The Order: 1886: generalized velvet NDF, no masking, Fresnel-weighted Lambert",
     params=(
         DIFFUSE,
-        Param("f0", (3,), 0.0, 1.0, 0.04, "sheen/specular reflectance F0 (RGB), Schlick"),
+        Param("f0", (3,), 0.0, 1.0, 0.04, "sheen/specular reflectance F0 (RGB), Schlick",
+              per_channel=True),
         Param("alpha", (), 0.05, 1.0, 0.4, "width α of the inverted Gaussian (RTR 9.73)", log=True),
         Param("k_amp", (), 0.0, 10.0, 4.0, "amplitude k_amp of the inverted Gaussian (RTR 9.73)"),
     ),
@@ -65,7 +66,8 @@ CLOTH_SHEEN = register(Model(
     description="Lambert + Imageworks sheen lobe (RTR 9.75 NDF, Smith G2 from the numerical Λ)",
     params=(
         DIFFUSE,
-        Param("sheen", (3,), 0.0, 1.0, 0.5, "sheen color (RGB) scaling the F = 1 sheen lobe"),
+        Param("sheen", (3,), 0.0, 1.0, 0.5, "sheen color (RGB) scaling the F = 1 sheen lobe",
+              per_channel=True),
         Param("alpha", (), 0.1, 1.0, 0.4, "sheen roughness α (RTR 9.75)", log=True),
     ),
     fn=lambda p, wi, wo: lambert(p["diffuse"], wi, wo)

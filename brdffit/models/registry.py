@@ -29,6 +29,13 @@ class Param:
         default: starting value (scalar broadcasts over the shape).
         description: one line for humans.
         log: the parameter spans decades (roughness): fitted in log space.
+        per_channel: an RGB parameter whose component ``c`` changes channel ``c`` of ``f_r``
+            only (a Lambertian albedo, a Schlick ``F0``), for every value of every parameter.
+            The fitter then differentiates all three components with one forward-mode product
+            (:meth:`brdffit.fitting.problem.Problem.tangents_x`). Declare it only when true: a
+            parameter that mixes channels (Disney's ``base_color``, through the tint's
+            luminance) would get a wrong Jacobian. ``tests/test_models.py`` checks every
+            registered model's declarations against forward-mode derivatives.
     """
 
     name: str
@@ -38,6 +45,7 @@ class Param:
     default: float | tuple[float, ...]
     description: str
     log: bool = False
+    per_channel: bool = False
 
     @property
     def size(self) -> int:

@@ -18,8 +18,13 @@ from .registry import Model, Param, register
 #: near 0.005, paints near 0.3), so it is fitted in log space.
 ALPHA_BOUNDS = (1e-3, 1.0)
 
-DIFFUSE = Param("diffuse", (3,), 0.0, 1.0, 0.2, "Lambertian diffuse albedo ρ_d (RGB); f_d = ρ_d/π")
-F0 = Param("f0", (3,), 0.0, 1.0, 0.04, "specular reflectance at normal incidence F0 (RGB), Schlick")
+DIFFUSE = Param(
+    "diffuse", (3,), 0.0, 1.0, 0.2, "Lambertian diffuse albedo ρ_d (RGB); f_d = ρ_d/π", per_channel=True
+)
+F0 = Param(
+    "f0", (3,), 0.0, 1.0, 0.04, "specular reflectance at normal incidence F0 (RGB), Schlick",
+    per_channel=True,
+)
 ALPHA = Param("alpha", (), *ALPHA_BOUNDS, 0.1, "microfacet roughness α", log=True)
 
 
@@ -74,9 +79,9 @@ TWO_LOBE_GGX_MODEL = register(
         description="Lambert + a sharp and a broad GGX lobe (after Ngan et al. 2005, RTR §9.8.1)",
         params=(
             DIFFUSE,
-            Param("f0_1", (3,), 0.0, 1.0, 0.04, "F0 of the sharp lobe (RGB)"),
+            Param("f0_1", (3,), 0.0, 1.0, 0.04, "F0 of the sharp lobe (RGB)", per_channel=True),
             Param("alpha_1", (), *ALPHA_BOUNDS, 0.05, "roughness of the sharp lobe", log=True),
-            Param("f0_2", (3,), 0.0, 1.0, 0.02, "F0 of the broad lobe (RGB)"),
+            Param("f0_2", (3,), 0.0, 1.0, 0.02, "F0 of the broad lobe (RGB)", per_channel=True),
             Param("alpha_2", (), *ALPHA_BOUNDS, 0.3, "roughness of the broad lobe", log=True),
         ),
         fn=_two_lobe_ggx,
