@@ -238,7 +238,13 @@ def test_select_pads_to_whole_blocks_with_zero_weight():
     s = SampleSet(wi, wi.copy(), np.full((n, 3), 0.2), np.ones(n, bool))
     sel = select(s, get_loss("log"))
     assert sel.chunks == 2 and sel.data.wi.shape == (2 * CHUNK_CELLS, 3)
-    assert np.all(np.asarray(sel.data.sqrt_weight)[n:] == 0) and sel.n_used == n
+    w = np.asarray(sel.data.sqrt_weight)
+    pad = np.all(w == 0, axis=1)
+    assert np.count_nonzero(pad) == 2 * CHUNK_CELLS - n and sel.n_used == n
+    assert np.all(np.asarray(sel.data.wi)[pad] == [0.0, 0.0, 1.0])  # padding: normal incidence
+    # interleaved: block j holds rows j, j + 2, ... of the padded selection (padding rows last)
+    order = np.arange(2 * CHUNK_CELLS).reshape(-1, 2).T.ravel()
+    np.testing.assert_array_equal(pad, order >= n)
 
 
 def test_select_option_errors():

@@ -67,8 +67,11 @@ def _thin(wi, wo, good) -> np.ndarray:
     n = len(wi)
     if np.count_nonzero(good) <= MEASURE_CELLS:
         return np.flatnonzero(good)
-    hz2 = np.where(good, (wi[:, 2] + wo[:, 2]) ** 2 / np.sum((wi + wo) ** 2, axis=1), -1.0)
-    peak = np.argpartition(-hz2, 200)[:200]  # largest cos²θh
+    # cos²θh = (wi_z + wo_z)² / |wi + wo|², |wi + wo|² = 2 (1 + wi·wo) for unit vectors
+    hz = wi[:, 2] + wo[:, 2]
+    hz2 = hz * hz / np.maximum(2.0 + 2.0 * np.einsum("ij,ij->i", wi, wo), 1e-300)
+    hz2[~good] = -1.0
+    peak = np.argpartition(hz2, n - 200)[n - 200 :]  # largest cos²θh
     mask = np.zeros(n, bool)
     mask[:: max(1, n // MEASURE_CELLS)] = True
     mask[peak] = True

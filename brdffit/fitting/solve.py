@@ -89,6 +89,11 @@ def _jitted_solve():
     return eqx.filter_jit(_solve, **_compiler_options())
 
 
+@eqx.filter_jit
+def _jitted_floor(problem: Problem, data, noise):
+    return problem.cost_floor(data, noise)
+
+
 def _solve(problem: Problem, solver, u0, data, floor, max_steps: int, active):
     """One optimistix solve over the first ``active`` blocks of cells, with the Gauss–Newton
     matrix and the error figures at its end point (accumulated in the solver's own passes;
@@ -154,7 +159,7 @@ def _starts(u0: np.ndarray, multistart: int, seed: int) -> list[np.ndarray]:
 #: The warm start runs when the selection has at least this many blocks of cells ...
 WARM_MIN_CHUNKS = 8
 #: ... on this fraction of them (at least one block; evenly spread cells, see
-#: :func:`brdffit.fitting.data.interleave`).
+#: :func:`brdffit.fitting.data.select`).
 WARM_FRACTION = 1 / 16
 
 
@@ -171,7 +176,7 @@ def _warm_start(problem, solver, u0, data, floor, max_steps):
     the trust region it ended with (issue 4, "Speed").
 
     The far-from-optimum steps then cost a fraction of a full pass each; the full table starts
-    within its statistical error of its own optimum, undamped, and needs about three passes.
+    within its statistical error of its own optimum, undamped, and needs about two passes.
     What is fitted, and the convergence test, are unchanged. Skipped for small selections.
     """
     if problem.chunks < WARM_MIN_CHUNKS:
@@ -212,7 +217,7 @@ def _bound_restart(out, key):
 def _run_starts(problem, solver, starts, data, max_steps):
     """Solve from every start (and once more from a bound restart); return the raw output of
     the best and the cost of each start."""
-    floor = problem.cost_floor(data, COST_NOISE[problem.compute_dtype])
+    floor = _jitted_floor(problem, data, COST_NOISE[problem.compute_dtype])
     _PROGRESS["floor"] = float(floor)
     best, costs = None, []
     for k, u0 in enumerate(starts):

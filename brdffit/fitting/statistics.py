@@ -32,6 +32,7 @@ import numpy as np
 from .data import FitData
 from .losses import RELATIVE_FLOOR
 
+
 def cell_metric_sums(pred, data: FitData):
     """Sums over one block of cells behind :func:`metrics_from`: ``m`` (residuals with non-zero
     weight), ``Σ (Δρ cosθi cosθo)²``, ``Σ (Δ log(1 + ρ cosθi))²``, ``Σ |Δρ|/max(ρ, 10⁻³)``.
