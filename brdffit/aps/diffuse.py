@@ -53,11 +53,19 @@ class RTable(eqx.Module):
         """``R(k_j; f0)`` at the table nodes, ``(n_u, n_phi, 3)`` for RGB ``f0``."""
         return self.r0[..., None] + jnp.asarray(f0) * (self.r1 - self.r0)[..., None]
 
+    def both(self, k):
+        """``(R₀(k), R₁(k))`` at directions ``(..., 3)``, stacked ``(..., 2)`` (one lookup)."""
+        return interp_table(jnp.stack([self.r0, self.r1], axis=-1), k)
+
+    @staticmethod
+    def mix(both, f0):
+        """``R(k; f0) = R₀ + f0 (R₁ - R₀)`` from :meth:`both`: ``(..., 3)`` for RGB ``f0``."""
+        r0, r1 = both[..., 0:1], both[..., 1:2]
+        return r0 + jnp.asarray(f0) * (r1 - r0)
+
     def __call__(self, k, f0):
         """``R(k; f0)`` at directions ``(..., 3)``: ``(..., 3)`` for RGB ``f0``."""
-        r = interp_table(jnp.stack([self.r0, self.r1], axis=-1), k)  # one lookup for both
-        r0, r1 = r[..., 0:1], r[..., 1:2]
-        return r0 + jnp.asarray(f0) * (r1 - r0)
+        return self.mix(self.both(k), f0)
 
 
 @eqx.filter_jit
@@ -81,14 +89,22 @@ def build_r_table(dist, table, dtype, res: Resolution = DEFAULT_RESOLUTION, shad
     return RTable(r0.reshape(n_u, n_phi), r1.reshape(n_u, n_phi))
 
 
-def _coupled(rtable, rho_d, f0, white, wi, wo):
+def coupled_scale(rtable, f0, white):
+    """``c`` of eq. 30 (RGB): ``1/(π · avg(white - R(·; f0))⁺)``, 0 where nothing is left."""
     avail = jnp.maximum(white - rtable.nodes(f0), 0.0)  # (n_u, n_phi, 3)
     norm = jnp.pi * hemisphere_average(avail)  # (3,)
-    a1 = jnp.maximum(white - rtable(wi, f0), 0.0)
-    a2 = jnp.maximum(white - rtable(wo, f0), 0.0)
-    c = jnp.where(norm > 0, 1.0 / jnp.where(norm > 0, norm, 1.0), 0.0)
-    vis = chi_plus(cos_theta(wi)) * chi_plus(cos_theta(wo))
+    return jnp.where(norm > 0, 1.0 / jnp.where(norm > 0, norm, 1.0), 0.0)
+
+
+def coupled_term(rho_d, c, white, r1, r2, vis):
+    """``ρ_d c (white - R(k₁))⁺ (white - R(k₂))⁺`` times the visibility ``vis`` ``(...)``."""
+    a1, a2 = jnp.maximum(white - r1, 0.0), jnp.maximum(white - r2, 0.0)
     return jnp.asarray(rho_d) * c * a1 * a2 * vis[..., None]
+
+
+def _coupled(rtable, rho_d, f0, white, wi, wo):
+    vis = chi_plus(cos_theta(wi)) * chi_plus(cos_theta(wo))
+    return coupled_term(rho_d, coupled_scale(rtable, f0, white), white, rtable(wi, f0), rtable(wo, f0), vis)
 
 
 def aps_diffuse(rtable, rho_d, f0, wi, wo):

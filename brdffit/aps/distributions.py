@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._math import safe_div
+from .._math import azimuth, safe_div
 from .quadrature import polar_rule
 
 #: ``tan²``/``cot²`` values standing in for infinity (``exp(-BIG/σ²)`` underflows to 0).
@@ -251,7 +251,7 @@ class TabulatedDistribution(Distribution):
         fx = x - i0
         if n_p == 1:
             return (1 - fx) * v[i0, 0] + fx * v[i0 + 1, 0]
-        y = jnp.mod(jnp.arctan2(h[..., 1], h[..., 0]), 2 * np.pi) / (2 * np.pi) * n_p
+        y = azimuth(h[..., 0], h[..., 1]) / (2 * np.pi) * n_p
         j0 = jnp.clip(jnp.floor(y), 0, n_p - 1).astype(jnp.int32)
         fy, j1 = y - j0, (j0 + 1) % n_p
         return (1 - fx) * ((1 - fy) * v[i0, j0] + fy * v[i0, j1]) + fx * (

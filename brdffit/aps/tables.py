@@ -33,7 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._math import dot
+from .._math import azimuth, dot
 from .quadrature import lune_rule, polar_rule
 
 
@@ -102,7 +102,7 @@ def interp_table(values, k):
     if n_phi == 1:
         col = values[:, 0]
         return (1 - fx) * col[i0] + fx * col[i0 + 1]
-    y = jnp.mod(jnp.arctan2(k[..., 1], k[..., 0]), 2 * np.pi) * (n_phi / (2 * np.pi))
+    y = azimuth(k[..., 0], k[..., 1]) * (n_phi / (2 * np.pi))
     j0 = jnp.clip(jnp.floor(y), 0, n_phi - 1).astype(jnp.int32)
     fy, j1 = (y - j0)[(...,) + extra], (j0 + 1) % n_phi
     lo = (1 - fy) * values[i0, j0] + fy * values[i0, j1]

@@ -19,13 +19,16 @@ _JIT_CACHE: dict[int, tuple[object, object]] = {}
 
 
 def _jitted(model):
-    """``jax.jit`` of ``model.fn``, cached per model function (one compile per model and shape)."""
+    """The compiled pieces of ``model``, cached per model function (one compile per model and
+    shape): ``(jit(fn),)``, or ``(jit(prepare), jit(per_pair), jit(combine))`` for a model with
+    ``stages``."""
     import jax
 
     key = id(model.fn)
     hit = _JIT_CACHE.get(key)
     if hit is None or hit[0] is not model.fn:
-        hit = (model.fn, jax.jit(model.fn))
+        parts = model.stages or (model.fn,)
+        hit = (model.fn, tuple(jax.jit(f) for f in parts))
         _JIT_CACHE[key] = hit
     return hit[1]
 
@@ -35,7 +38,9 @@ def evaluate_model(model, params: Mapping | None, wi, wo, *, chunk: int = CHUNK)
 
     Missing parameters take the model's defaults. Evaluation runs in chunks of ``chunk``
     directions; padding uses the pair ``(z, z)`` so it never produces NaN. The dtype follows JAX's
-    setting (float64 when the caller enabled ``jax_enable_x64``).
+    setting (float64 when the caller enabled ``jax_enable_x64``). A model with ``stages``
+    (:class:`~brdffit.models.registry.Model`) is prepared once (its tables built once), then each
+    chunk runs its two per-pair programs.
     """
     import jax.numpy as jnp
 
@@ -43,7 +48,19 @@ def evaluate_model(model, params: Mapping | None, wi, wo, *, chunk: int = CHUNK)
 
     model = get_model(model)
     full = {k: jnp.asarray(np.asarray(v, dtype=float)) for k, v in model.complete(params).items()}
-    fn = _jitted(model)
+    parts = _jitted(model)
+    if len(parts) == 3:
+        prepare, per_pair, combine = parts
+        state = prepare(full)
+
+        def fn(a, b):
+            return combine(state, per_pair(state, a, b))
+    else:
+        (whole,) = parts
+
+        def fn(a, b):
+            return whole(full, a, b)
+
     wi, wo = np.asarray(wi, dtype=float), np.asarray(wo, dtype=float)
     batch = np.broadcast_shapes(wi.shape, wo.shape)[:-1]
     wi = np.broadcast_to(wi, batch + (3,)).reshape(-1, 3)
@@ -56,5 +73,5 @@ def evaluate_model(model, params: Mapping | None, wi, wo, *, chunk: int = CHUNK)
         m = min(chunk, n - start)
         a, b = pad.copy(), pad.copy()
         a[:m], b[:m] = wi[start : start + m], wo[start : start + m]
-        out[start : start + m] = np.asarray(fn(full, jnp.asarray(a), jnp.asarray(b)))[:m]
+        out[start : start + m] = np.asarray(fn(jnp.asarray(a), jnp.asarray(b)))[:m]
     return out.reshape(batch + (3,))

@@ -83,6 +83,15 @@ class Model:
 
     ``fn`` receives a mapping from every parameter name to an array of its shape and directions
     of shape ``(..., 3)``; it returns RGB ``f_r`` of shape ``(..., 3)`` (no cosine factor).
+
+    ``stages`` (optional) splits ``fn`` for evaluation over large grids:
+    ``(prepare, per_pair, combine)`` with ``prepare(params) -> state`` (e.g. tables built from
+    the parameters), ``per_pair(state, wi, wo) -> quantities`` and
+    ``combine(state, quantities) -> f_r``, such that ``fn(params, wi, wo)`` equals
+    ``combine(s, per_pair(s, wi, wo))`` with ``s = prepare(params)``.
+    :func:`brdffit.models.evaluate.evaluate_model` then prepares once per call and compiles the
+    other two as separate programs (see :mod:`brdffit.aps.models` for why that is faster). The
+    fitter always uses ``fn``.
     """
 
     name: str
@@ -91,6 +100,9 @@ class Model:
     fn: Callable = dataclasses.field(repr=False, compare=False)
     isotropic: bool = True
     reference: str = ""
+    stages: tuple[Callable, Callable, Callable] | None = dataclasses.field(
+        default=None, repr=False, compare=False
+    )
 
     # -- parameter bookkeeping ---------------------------------------------------------------
     @property
