@@ -118,8 +118,8 @@ class Problem(eqx.Module):
         ``c`` only; every loss acts channel by channel) needs one ``jvp`` for all its
         components: with the tangent set to one on every free component, channel ``c`` of
         ``T_k`` is exactly ``∂r_{·c}/∂x_c``. Any other parameter takes one ``jvp`` per free
-        component. For ``ggx`` this is 3 ``jvp`` s
-        instead of 7. XLA's common-subexpression elimination shares the primal between them.
+        component: 3 products instead of 7 for ``ggx``. XLA's common-subexpression elimination
+        shares the primal between them.
         """
         dt = jnp.dtype(self.compute_dtype)
         params = self.model.unflatten(self.full_vector(x_free).astype(dt))
