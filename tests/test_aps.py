@@ -15,6 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from half_vector_rule import half_vector_rule
 
 from brdffit.aps import (
     COARSE,
@@ -51,18 +52,9 @@ def hemi(n, seed, min_cos=0.05):
 
 
 def albedo(f, theta_i, phi_i=0.3, n_th=300, n_ph=200):
-    """``∫ f(wi, wo) cosθo dωo`` over half vectors (midpoint rule in u = √(2θh/π) and φh)."""
-    u = (np.arange(n_th) + 0.5) / n_th
-    th, dth = 0.5 * np.pi * u**2, np.pi * u / n_th
-    ph = (np.arange(n_ph) + 0.5) / n_ph * 2 * np.pi
-    TH, PH = np.meshgrid(th, ph, indexing="ij")
-    h = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1)
-    wi = np.array([np.sin(theta_i) * np.cos(phi_i), np.sin(theta_i) * np.sin(phi_i), np.cos(theta_i)])
-    hw = h @ wi
-    wo = 2 * hw[..., None] * h - wi
-    ok = (wo[..., 2] > 0) & (hw > 0)
-    val = np.asarray(f(jnp.asarray(np.broadcast_to(wi, wo.shape)), jnp.asarray(wo)))
-    w = np.where(ok, wo[..., 2] * 4 * hw, 0.0) * np.sin(TH) * dth[:, None] * (2 * np.pi / n_ph)
+    """``∫ f(wi, wo) cosθo dωo`` over half vectors (:mod:`half_vector_rule`)."""
+    wi, wo, w = half_vector_rule(theta_i, n_th, n_ph, phi_i)
+    val = np.asarray(f(jnp.asarray(wi), jnp.asarray(wo)))
     return (val * w[..., None]).sum(axis=(0, 1))
 
 

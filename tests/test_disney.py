@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from half_vector_rule import half_vector_rule
 
 from brdffit.diffuse import disney_diffuse
 from brdffit.models import disney as dm
@@ -210,18 +211,8 @@ def test_azimuth_matters_only_with_anisotropy():
 
 
 def _albedo_fn(theta_i, n_th=200, n_ph=96):
-    """Directional albedo over half vectors (dω_o = 4 (wo·h) dω_h), θ_h warped as (π/2)u²."""
-    u = (np.arange(n_th) + 0.5) / n_th
-    th, dth = 0.5 * np.pi * u**2, np.pi * u / n_th
-    ph = (np.arange(n_ph) + 0.5) / n_ph * 2 * np.pi
-    TH, PH = np.meshgrid(th, ph, indexing="ij")
-    h = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1)
-    wi = np.array([np.sin(theta_i), 0.0, np.cos(theta_i)])
-    hw = h @ wi
-    wo = 2 * hw[..., None] * h - wi
-    ok = (wo[..., 2] > 0) & (hw > 0)
-    weight = np.where(ok, wo[..., 2] * 4 * hw, 0.0) * np.sin(TH) * dth[:, None] * (2 * np.pi / n_ph)
-    return jnp.asarray(np.broadcast_to(wi, wo.shape)), jnp.asarray(wo), jnp.asarray(weight)
+    """Directional albedo over half vectors (:mod:`half_vector_rule`): ``(wi, wo, weight)``."""
+    return tuple(jnp.asarray(a) for a in half_vector_rule(theta_i, n_th, n_ph))
 
 
 _ALBEDO = jax.jit(lambda f, p, wi, wo, w: jnp.sum(f(p, wi, wo) * w[..., None], axis=(0, 1)), static_argnums=0)

@@ -14,7 +14,7 @@ from brdffit.errors import ConfigError, FitError, UnknownNameError
 from brdffit.fitting import LOSSES, FitResult, Subsample, get_loss
 from brdffit.fitting.data import CHUNK_CELLS, select
 from brdffit.fitting.losses import RELATIVE_FLOOR, huber_residual
-from brdffit.fitting.normal_form import compress, dense_sums, gram, normal_form
+from brdffit.fitting.normal_form import compress, gram, normal_form
 from brdffit.fitting.problem import Problem
 from brdffit.fitting.setup import flat_log
 from brdffit.fitting.transforms import (
@@ -119,6 +119,18 @@ def _toy_columns(u, data):
     r = pred - y
     cols = jax.vmap(lambda t: jax.jvp(lambda v: _toy_res(v, data), (u,), (t,))[1])(jnp.eye(4))
     return r, cols
+
+
+def dense_sums(columns):
+    """``sums`` for ``gram`` from ``columns(u, block) -> (r, J)`` with ``J`` dense (``p`` rows):
+    the straightforward reference for the normal form; every residual counts in ``m``."""
+
+    def sums(u, chunk):
+        r, cols = columns(u, chunk)
+        cr = cols * r
+        return jnp.sum(r * r), cols @ cols.T, cols @ r, cr @ cr.T, jnp.full((1,), r.size, u.dtype)
+
+    return sums
 
 
 def _toy_res(u, data):

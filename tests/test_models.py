@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from half_vector_rule import half_vector_rule
 
 import brdffit
 from brdffit.models import get_model
@@ -120,24 +121,10 @@ def test_anisotropic_models_depend_on_azimuth(name):
 
 
 def _albedo(model, params, theta_i, n_th=400, n_ph=256):
-    """Directional albedo ∫ f cosθo dωo over the half-vector domain (dωo = 4 (wo·h) dωh).
-
-    θh is warped as (π/2)u², like the MERL grid, to resolve narrow peaks; midpoint rule in u
-    and φh.
-    """
-    u = (np.arange(n_th) + 0.5) / n_th
-    th = 0.5 * np.pi * u**2
-    dth = np.pi * u / n_th
-    ph = (np.arange(n_ph) + 0.5) / n_ph * 2 * np.pi
-    TH, PH = np.meshgrid(th, ph, indexing="ij")
-    h = np.stack([np.sin(TH) * np.cos(PH), np.sin(TH) * np.sin(PH), np.cos(TH)], -1)
-    wi = np.array([np.sin(theta_i), 0.0, np.cos(theta_i)])
-    hw = h @ wi
-    wo = 2 * hw[..., None] * h - wi
-    ok = (wo[..., 2] > 0) & (hw > 0)
-    f = np.asarray(model(params, jnp.asarray(np.broadcast_to(wi, wo.shape)), jnp.asarray(wo)))
-    integrand = f * (np.where(ok, wo[..., 2] * 4 * hw, 0.0) * np.sin(TH))[..., None]
-    return (integrand * (dth[:, None] * (2 * np.pi / n_ph))[..., None]).sum(axis=(0, 1))
+    """Directional albedo ∫ f cosθo dωo over the half-vector domain (:mod:`half_vector_rule`)."""
+    wi, wo, weight = half_vector_rule(theta_i, n_th, n_ph)
+    f = np.asarray(model(params, jnp.asarray(wi), jnp.asarray(wo)))
+    return (f * weight[..., None]).sum(axis=(0, 1))
 
 
 @pytest.mark.parametrize("name", MODELS)

@@ -58,9 +58,8 @@ def gram(sums: Callable, u, data, chunks: int = 1, active=None):
     """``(Σ r², JᵀJ, Jᵀr, Jᵀdiag(r²)J, extra)`` summed over the blocks of cells.
 
     ``sums(u, data_block)`` returns the five for one block (``extra``: a vector of further sums
-    whose first entry is ``m``, the number of residuals with non-zero weight), e.g. :meth:`Problem.block_sums
-    <brdffit.fitting.problem.Problem.block_sums>`, or :func:`dense_sums` for a residual given
-    with its Jacobian rows. The cells are processed in ``chunks`` equal blocks (a loop), so the
+    whose first entry is ``m``, the number of residuals with non-zero weight), e.g.
+    :meth:`Problem.block_sums <brdffit.fitting.problem.Problem.block_sums>`. The cells are processed in ``chunks`` equal blocks (a loop), so the
     per-block derivatives stay in cache and the whole Jacobian is never in memory. ``active`` (a
     traced integer, default all) sums over the first ``active`` blocks only: the same compiled
     program then serves a fit on a leading subset of the blocks (the warm start of
@@ -76,21 +75,6 @@ def gram(sums: Callable, u, data, chunks: int = 1, active=None):
         return tuple(c + s.astype(acc) for c, s in zip(carry, sums(u, chunk)))
 
     return over_blocks(block, init, data, chunks, active)
-
-
-def dense_sums(columns: Callable) -> Callable:
-    """``sums`` for :func:`gram` from ``columns(u, block) -> (r, J)`` (``J`` as ``p`` rows of
-    length ``m``; rows may be float32, the sums are in ``u``'s precision; ``extra = [m]``, every
-    residual counts)."""
-
-    def sums(u, chunk):
-        acc = jnp.promote_types(u.dtype, jnp.float32)
-        r, cols = columns(u, chunk)
-        r, cols = r.astype(acc), cols.astype(acc)
-        cr = cols * r
-        return jnp.sum(r * r), cols @ cols.T, cols @ r, cr @ cr.T, jnp.full((1,), r.size, acc)
-
-    return sums
 
 
 def over_blocks(block: Callable, init, data, chunks: int, active=None):
