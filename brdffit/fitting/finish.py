@@ -11,7 +11,7 @@ import optimistix as optx
 from ..errors import FitError
 from .result import FitResult
 from .statistics import covariance
-from .transforms import U_CLIP, at_bound
+from .transforms import at_bound
 
 
 def _message(code: int, finite: bool, max_steps_hint: str) -> tuple[str, str]:
@@ -38,19 +38,29 @@ def _by_param(model, flat):
 
 
 def make_result(*, model, problem, sel, out, u0, costs, x_start, fixed_idx, loss, solver, throw,
-                name, times, emit, cov_kind="sandwich"):
+                name, times, emit, bounds, ftol, cov_kind="sandwich"):
     """Assemble the :class:`FitResult` (raises :class:`FitError` on failure if ``throw``)."""
     u, code = np.asarray(out["u"], float), int(out["code"])
-    u = np.clip(u, -U_CLIP, U_CLIP)  # ±inf (a parameter run to its bound) is a valid end point
     finite = bool(np.all(np.isfinite(u)) and np.isfinite(out["cost"]))
+    omega = float(out["omega"])
+    optimal = finite and code == 0 and omega <= ftol
     status, message = _message(code, finite, " Increase `max_steps` or start elsewhere.")
-    success = finite and code == 0
+    if finite and code == 0 and not optimal:
+        status, message = "stalled", (
+            f"the solver stopped moving before the optimality test held (the Gauss-Newton step "
+            f"would still lower the cost by a fraction {omega:.2g} > ftol = {ftol:g}); try "
+            f"another `init`, `multistart`, or a looser `ftol`."
+        )
+    success = optimal
     if throw and not success:
         raise FitError(f"{model.name} fit of {name or 'table'} did not converge: {message}")
     if not finite:
         u = np.asarray(u0, float)
     x_free = np.asarray(problem.physical(jnp.asarray(u)), float)
     bound = at_bound(u)
+    lo, hi = bounds
+    free_idx = list(problem.free)
+    x_free = np.where(bound < 0, lo[free_idx], np.where(bound > 0, hi[free_idx], x_free))
     cost = float(out["cost"]) if finite else float("nan")
     cov_free, regular = covariance(
         out["jtj"], out["meat"], out["dxdu"], 2 * cost, float(out["m"]), bound == 0, cov_kind
@@ -75,7 +85,7 @@ def make_result(*, model, problem, sel, out, u0, costs, x_start, fixed_idx, loss
         starts=[float(c) for c in costs], loss=loss.label, solver=solver,
         n_cells=sel.n_used, n_total=sel.n_total, init=_by_param(model, x_start),
         wall_time=t3 - t0, timings={"prepare": t1 - t0, "solve": t2 - t1, "finish": t3 - t2},
-        table=name, covariance=cov_kind,
+        table=name, covariance=cov_kind, optimality=omega,
     )
     emit(success=success, cost=result.cost)
     return result

@@ -99,6 +99,20 @@ def compress(sum_r2, jtj, jtr):
     return jnp.concatenate([head, tail[None]]), rmat
 
 
+def compress_newton(sum_r2, jtj, second, jtr):
+    r""":func:`compress` of ``JᵀJ + S`` (``S`` an estimate of the second-order term
+    :math:`\sum_i r_i \nabla^2 r_i` that Gauss–Newton drops), so that the solver's quadratic
+    model is Newton's; ``J̃ᵀr̃ = Jᵀr`` and ``‖r̃‖² = Σ r²`` still hold. Falls back to ``JᵀJ``
+    where ``JᵀJ + S`` is not positive definite or its Newton decrement exceeds the cost (far
+    from the optimum), so the cost is always represented exactly."""
+    h = jtj + second
+    lam = jnp.linalg.eigvalsh(h)
+    rt, rmat = compress(sum_r2, h, jtr)
+    ok = (lam[0] > RANK_RTOL * jnp.max(jnp.abs(lam))) & (jnp.sum(rt[:-1] ** 2) < sum_r2)
+    rt_gn, rmat_gn = compress(sum_r2, jtj, jtr)
+    return jnp.where(ok, rt, rt_gn), jnp.where(ok, rmat, rmat_gn)
+
+
 def normal_form(sums: Callable, chunks: int = 1) -> Callable:
     """``fn(u, args) -> r̃`` for optimistix, whose derivative is the Gauss–Newton ``J̃``.
 
@@ -117,10 +131,13 @@ def normal_form(sums: Callable, chunks: int = 1) -> Callable:
     """
 
     def _both(u, args):
-        data, floor, *active = args
-        active = active[0] if active else None
+        data, floor, *rest = args
+        active = rest[0] if rest else None
         sum_r2, jtj, jtr, meat, extra = gram(sums, u, data, chunks, active)
-        rt, rmat = compress(sum_r2 + 2.0 * floor, jtj, jtr)
+        if len(rest) > 1:  # a second-order term: Newton's quadratic model
+            rt, rmat = compress_newton(sum_r2 + 2.0 * floor, jtj, rest[1].astype(jtj.dtype), jtr)
+        else:
+            rt, rmat = compress(sum_r2 + 2.0 * floor, jtj, jtr)
         aux = {"jtj": jtj, "meat": meat, "sum_r2": sum_r2, "extra": extra, "m": extra[0]}
         return rt, rmat, aux
 

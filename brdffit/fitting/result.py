@@ -84,6 +84,9 @@ class FitResult:
         init: the starting parameters of the best start. wall_time: seconds for the whole call;
         timings: a breakdown (``prepare``, ``solve``, ``finish``), seconds.
         table: the input's name. covariance: ``"sandwich"`` or ``"gn"``, how ``cov`` was estimated.
+        optimality: ``ω`` at the end point, the fraction of the cost that the bounded
+            Gauss–Newton step could still remove (:func:`brdffit.fitting.solvers.optimality`);
+            ``success`` means ``ω ≤ ftol``.
     """
 
     model_name: str
@@ -111,6 +114,7 @@ class FitResult:
     timings: dict
     table: str = ""
     covariance: str = "sandwich"
+    optimality: float = float("nan")
 
     # -- evaluation -----------------------------------------------------------------------------
     @property
@@ -151,7 +155,8 @@ class FitResult:
             err = f" ± {flat_se[n]:.3g}" if n in self.free and n not in self.at_bound else ""
             lines.append(f"  {n:>18} = {flat_x[n]:.6g}{err}{tag}")
         lines.append("  " + ", ".join(f"{k} {v:.4g}" for k, v in self.metrics.items()))
-        lines.append(f"  cost {self.cost:.6g}" + (f"; starts {len(self.starts)}" if len(self.starts) > 1 else ""))
+        lines.append(f"  cost {self.cost:.6g}, optimality {self.optimality:.2g}"
+                     + (f"; starts {len(self.starts)}" if len(self.starts) > 1 else ""))
         return "\n".join(lines)
 
     def __str__(self) -> str:
