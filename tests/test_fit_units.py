@@ -17,13 +17,8 @@ from brdffit.fitting.losses import RELATIVE_FLOOR, huber_residual
 from brdffit.fitting.normal_form import compress, gram, normal_form
 from brdffit.fitting.problem import Problem
 from brdffit.fitting.setup import flat_log
-from brdffit.fitting.transforms import (
-    U_CLIP,
-    at_bound,
-    bounds_in_s,
-    to_physical,
-    to_unconstrained,
-)
+from brdffit.fitting.solvers import box_step, optimality, predicted_decrease
+from brdffit.fitting.transforms import at_bound, bounds_in_s, to_box, to_physical
 from data_formats import SampleSet
 
 RNG = np.random.default_rng(0)
@@ -92,23 +87,89 @@ def test_transform_round_trip_and_bounds():
     log = np.array([False, True, True])
     slo, shi = bounds_in_s(lo, hi, log)
     x = np.array([0.25, 0.004, 1.2])
-    u = to_unconstrained(x, slo, shi, log)
-    np.testing.assert_allclose(to_physical(jnp.asarray(u), slo, shi, log), x, rtol=1e-12)
-    # an extreme u stays inside the bounds and is reported at the bound
-    big = np.array([-1e3, 1e3, 0.0])
-    xb = np.asarray(to_physical(jnp.asarray(big), slo, shi, log))
-    assert lo[0] <= xb[0] < lo[0] + 1e-12 and hi[1] - 1e-10 < xb[1] <= hi[1]
-    assert list(at_bound(big)) == [-1, 1, 0]
-    # beyond the clip the derivative is exactly zero (the solver stops pushing)
-    g = jax.grad(lambda v: jnp.sum(to_physical(v, slo, shi, log)))(jnp.asarray(big))
-    assert g[0] == 0 and g[1] == 0 and g[2] > 0
-    assert U_CLIP >= 500  # a parameter 40 units out still has a derivative (can come back)
-    g40 = jax.grad(lambda v: jnp.sum(to_physical(v, slo, shi, log)))(jnp.array([-40.0, 40.0, 0.0]))
-    assert g40[0] > 0 and g40[1] > 0
-    # a start on a bound is moved inside by the margin
-    u0 = to_unconstrained(np.array([0.0, 1.0, 0.3]), slo, shi, log, margin=0.01)
-    p = 1 / (1 + np.exp(-u0))
-    np.testing.assert_allclose(p, [0.01, 0.99, 0.01], rtol=1e-9)
+    z = to_box(x, slo, shi, log)
+    assert np.all((z > 0) & (z < 1))
+    np.testing.assert_allclose(to_physical(jnp.asarray(z), slo, shi, log), x, rtol=1e-12)
+    # the box's faces are the bounds, reported as such; values outside are clamped onto them
+    ends = np.array([0.0, 1.0, 0.5])
+    xb = np.asarray(to_physical(jnp.asarray(ends), slo, shi, log))
+    np.testing.assert_allclose(xb[:2], [lo[0], hi[1]], rtol=1e-15)
+    assert list(at_bound(ends)) == [-1, 1, 0]
+    np.testing.assert_array_equal(to_box(np.array([-1.0, 5.0, 0.3]), slo, shi, log), [0, 1, 0])
+    # affine in s: the derivative on a bound equals the one inside (a parameter on its bound
+    # can come back), unlike a logistic map whose derivative vanishes there
+    grad = jax.grad(lambda v: to_physical(v, slo, shi, log)[0])
+    assert grad(jnp.asarray(ends))[0] == pytest.approx(1.0) and grad(jnp.full(3, 0.3))[0] == 1.0
+    dlog = jax.grad(lambda v: jnp.log(to_physical(v, slo, shi, log)[1]))(jnp.asarray(ends))[1]
+    assert float(dlog) == pytest.approx(shi[1] - slo[1])
+
+
+# -- the bounded step and the optimality test -----------------------------------------------
+def _box_qp_reference(h, g, z):
+    """The box-constrained quadratic minimum by scipy's L-BFGS-B (independent reference)."""
+    from scipy.optimize import minimize
+
+    f = lambda d: (g @ d + 0.5 * d @ h @ d, g + h @ d)
+    sol = minimize(f, np.zeros_like(z), jac=True, method="L-BFGS-B",
+                   bounds=list(zip(-z, 1.0 - z)), options={"ftol": 1e-15, "gtol": 1e-12})
+    return sol.x
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_box_step_solves_the_bounded_quadratic(seed):
+    rng = np.random.default_rng(seed)
+    p = 7
+    a = rng.normal(size=(20, p)) * np.logspace(0, 3, p)  # columns over three decades
+    h = a.T @ a
+    g = rng.normal(size=p) * 30 * np.diag(h) ** 0.5
+    z = rng.uniform(0, 1, size=p)
+    z[:2] = [0.0, 1.0]  # two coordinates on a bound
+    d = np.asarray(jax.jit(box_step)(h, g, z, np.zeros(p)))
+    ref = _box_qp_reference(h, g, z)
+    assert np.all(z + d >= 0) and np.all(z + d <= 1)
+    q = lambda v: g @ v + 0.5 * v @ h @ v
+    assert q(d) <= q(ref) + 1e-9 * abs(q(ref))
+    # coordinates the minimum puts on a bound are exactly on it
+    on = (np.isclose(z + ref, 0, atol=1e-7)) | (np.isclose(z + ref, 1, atol=1e-7))
+    assert np.all(((z + d)[on] == 0) | ((z + d)[on] >= 1 - 1e-15))
+
+
+def test_optimality_is_zero_at_a_bounded_stationary_point_and_positive_elsewhere():
+    h = np.array([[4.0, 1.0], [1.0, 3.0]])
+    # the unconstrained minimum is at z = (-0.2, 0.5): the first coordinate belongs on its bound
+    target = np.array([-0.2, 0.5])
+    g_at = lambda z: h @ (z - target)
+    cost = lambda z: 0.5 * (z - target) @ h @ (z - target) + 1.0
+    zopt = np.array([0.0, target[1] - h[1, 0] * (0.0 - target[0]) / h[1, 1]])  # z1's best at z0 = 0
+    om, d = optimality(jnp.asarray(h), jnp.asarray(g_at(zopt)), jnp.asarray(cost(zopt)), jnp.asarray(zopt))
+    assert abs(float(om)) < 1e-12 and np.allclose(d, 0, atol=1e-12)
+    z = np.array([0.3, 0.9])
+    om, d = optimality(jnp.asarray(h), jnp.asarray(g_at(z)), jnp.asarray(cost(z)), jnp.asarray(z))
+    expected = float(predicted_decrease(jnp.asarray(h), jnp.asarray(g_at(z)), d)) / cost(z)
+    assert float(om) == pytest.approx(expected) and float(om) > 0
+    np.testing.assert_allclose(z + np.asarray(d), zopt, atol=1e-9)  # the step reaches the optimum
+
+
+def test_second_order_term_matches_finite_differences():
+    """``Problem.block_second_order`` = Hessian of ½Σr² − JᵀJ, against central differences of
+    the gradient (from the dense Jacobian) on a noisy table (large residuals)."""
+    model = brdffit.get_model("ggx")
+    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2}
+    s = ggx_samples(400, x0, noise=0.3)
+    prob = _problem("ggx", tuple(range(7)), x0)
+    sel = select(s, prob.loss)
+    z = jnp.asarray(to_box(model.flatten(x0), np.asarray(prob.slo), np.asarray(prob.shi),
+                           flat_log(model)))
+    second = np.asarray(jax.jit(lambda p, v, d: p.block_second_order(v, d))(prob, z, sel.data))
+    grad = jax.jit(lambda p, v, d: jax.jacfwd(p.residual)(v, d).T @ p.residual(v, d))
+    jac = jax.jit(lambda p, v, d: jax.jacfwd(p.residual)(v, d))
+    h = 1e-5
+    hess = np.stack([(np.asarray(grad(prob, z.at[i].add(h), sel.data))
+                      - np.asarray(grad(prob, z.at[i].add(-h), sel.data))) / (2 * h) for i in range(7)])
+    J = np.asarray(jac(prob, z, sel.data))
+    ref = 0.5 * (hess + hess.T) - J.T @ J
+    assert np.max(np.abs(ref)) > 1e-3 * np.max(np.abs(J.T @ J))  # the term is not negligible here
+    np.testing.assert_allclose(second, ref, atol=1e-6 * np.max(np.abs(J.T @ J)))
 
 
 # -- the normal form --------------------------------------------------------------------------
@@ -215,7 +276,7 @@ def test_block_sums_match_dense_jacobian(model_name, free, x0, local):
     for name, want in local.items():
         assert prob.model.param(name).per_channel is want, name
     sel = select(ggx_samples(400), get_loss("log"))
-    u = jnp.asarray(RNG.normal(scale=0.5, size=len(free)))
+    u = jnp.asarray(RNG.uniform(0.1, 0.9, size=len(free)))  # box coordinates
     got = jax.jit(lambda p, v, d: p.block_sums(v, d))(prob, u, sel.data)
     want = _dense_reference(prob, u, sel.data)
     for g, w in zip(got[:4], want):
@@ -314,8 +375,10 @@ def test_result_fields_progress_and_fixed(small_fit):
     assert res.stderr["f0"][2] == 0 and res.stderr["alpha"] > 0
     kinds = [e for e, _ in events]
     assert kinds[0] == "setup" and "step" in kinds and kinds[-1] == "done"
-    steps = [i["cost"] for e, i in events if e == "step"]
-    assert steps[-1] == pytest.approx(res.cost, rel=1e-6) and steps[0] > steps[-1]
+    steps = [i["cost"] for e, i in events if e == "step"]  # the last stage: the whole table
+    assert steps[-1] == pytest.approx(res.cost, rel=1e-6)
+    scan = [i["cost"] for e, i in events if e == "scan-step"]  # the start scan (same cells here)
+    assert scan[0] > steps[-1] and min(scan) >= steps[-1] * (1 - 1e-9)
     pred = np.asarray(res.model(s.wi, s.wo))
     np.testing.assert_allclose(res.metrics["rel_error"],
                                np.mean(np.abs(pred - s.rgb) / np.maximum(s.rgb, 1e-3)), rtol=1e-9)

@@ -140,7 +140,7 @@ class Progress:
         if not self.enabled:
             return
         text = f"[{time.perf_counter() - self.start:6.1f}s] " + " ".join(map(_describe, event))
-        if event and event[0] == "step":
+        if event and str(event[0]).endswith("step"):
             self.stream.write("\r" + text + "\x1b[K")
             self._inline = True
         else:

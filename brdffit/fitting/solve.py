@@ -67,10 +67,9 @@ def _emit(event: str, **info):
 
 def _step_callback(step, loss):
     cost = float(loss) - _PROGRESS["floor"]  # the solver's cost carries the constant floor
-    if _PROGRESS["stage"] is not None:  # a step on a subset of the cells (warm start, scan)
-        _emit(f"{_PROGRESS['stage']}-step", start=_PROGRESS["start"], step=int(step), cost=float(loss))
-    else:
-        _emit("step", start=_PROGRESS["start"], step=int(step), cost=cost)
+    stage = _PROGRESS["stage"]  # None, or a solve on a subset of the cells (warm start, scan)
+    _emit("step" if stage is None else f"{stage}-step", start=_PROGRESS["start"], step=int(step),
+          cost=cost)
 
 
 def _verbose_hook(**kwargs):
@@ -213,6 +212,7 @@ def _call(problem, solver, z0, data, floor, max_steps, active, second=None):
         second = np.zeros((len(z0), len(z0)))
     args = (problem, solver, jnp.asarray(z0), data, floor, max_steps, jnp.int32(active),
             jnp.asarray(second, jnp.result_type(float)))
+    _PROGRESS["floor"] = float(floor)
     out = jax.tree.map(np.asarray, _jitted_solve()(*args))
     cost = float(out["cost"])
     ok = (int(out["code"]) == 0 and not np.any(np.isnan(out["u"])) and np.isfinite(cost)
@@ -311,7 +311,6 @@ def _solve_one(problem, solver, z0, data, floor, max_steps, k, scan=True):
 def _run_starts(problem, solver, starts, data, max_steps, scan=True):
     """Solve from every start; return the raw output of the best and the cost of each start."""
     floor = _jitted_floor(problem, data, COST_NOISE[problem.compute_dtype])
-    _PROGRESS["floor"] = float(floor)
     best, costs = None, []
     for k, z0 in enumerate(starts):
         _emit("start", start=k, of=len(starts))
@@ -377,9 +376,11 @@ def fit(
             ``False`` starts from the data-driven (or given) start alone.
         throw: raise :class:`~brdffit.errors.FitError` when the solver does not converge;
             with ``False`` the result carries ``success=False`` and the solver's message.
-        progress: ``callback(event, info)`` with events ``setup``, ``start``, ``warm-step`` and
-            ``warm-done`` (large tables: the warm start on a subset of the blocks), ``step``,
-            ``start-done``, ``done``.
+        progress: ``callback(event, info)`` with events ``setup``, ``start``, ``scan-step`` and
+            ``scan`` (one per candidate of the start scan), ``warm-step`` and ``warm-done``
+            (large tables: the warm start on a subset of the blocks), ``step`` (the whole
+            selection), ``start-done``, ``done``. Step events carry the cost of the cells of
+            their stage.
         precision: ``"float64"`` or ``"float32"`` model evaluation (products are accumulated in
             float64 either way when x64 is enabled). Defaults to float64 when x64 is enabled.
         covariance: ``"sandwich"`` (default, robust to heteroscedastic residuals) or ``"gn"``

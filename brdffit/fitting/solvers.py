@@ -108,7 +108,7 @@ def box_step(jtj, g, z, damping):
         free = ~held
         m = jnp.where(free[:, None] & free[None, :], mat, 0.0) + jnp.where(held, 1.0, 0.0) * eye
         rhs = jnp.where(free, -g - mat @ val, val)
-        return _scaled_solve(m, rhs)
+        return jnp.where(held, val, _scaled_solve(m, rhs))
 
     def round_(_, carry):
         held_lo, held_hi = carry
