@@ -248,3 +248,21 @@ def test_synth_noise_is_multiplicative_with_the_given_sigma():
     assert abs(ratio.std() - 0.05) < 0.002 and abs(ratio.mean()) < 0.002
     half = (clean.wi + clean.wo) / np.linalg.norm(clean.wi + clean.wo, axis=-1, keepdims=True)
     assert np.mean(half[:, 2] > np.cos(np.radians(10))) > 0.1  # dense near the peak
+
+
+def test_several_models_side_by_side_best_first(table, workdir):
+    run = brdffit_cli("fit", table, "--model", "beckmann,ggx", "--subsample", 3000,
+                      "--out", "several.json", cwd=workdir)
+    assert run.returncode == 0, run.stderr
+    lines = run.stdout.splitlines()
+    head = next(i for i, line in enumerate(lines) if line.lstrip().startswith("rank"))
+    assert "rmse_log" in lines[head] and "rmse_cosine" in lines[head]
+    first, second = lines[head + 2].split(), lines[head + 3].split()
+    assert first[:3] == ["1", "ggx", "yes"] and second[:3] == ["2", "beckmann", "yes"]
+    assert float(first[3]) < float(second[3])  # the ggx table is fitted best by ggx
+    saved = json.loads((workdir / "several.json").read_text())["results"]
+    assert [r["model_name"] for r in saved] == ["ggx", "beckmann"]
+    bad = brdffit_cli("fit", table, "--model", "ggx,ggx", cwd=workdir)
+    assert bad.returncode == 2 and "distinct model names" in bad.stderr
+    plot = brdffit_cli("fit", table, "--model", "ggx,beckmann", "--plot", "x.png", cwd=workdir)
+    assert plot.returncode == 2 and "take one model" in plot.stderr

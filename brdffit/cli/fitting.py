@@ -1,5 +1,10 @@
 """``brdffit fit FILE --model NAME``: fit a model, print a summary, write the requested outputs.
 
+``--model ggx,gtr,disney`` fits several models to the same cells and prints them side by side,
+best (lowest cost: the same loss on the same cells) first, with the error metrics of the
+literature (Ngan 2005's cosine-weighted RMSE, Löw 2012's log RMSE); ``--out`` then holds all
+results, best first.
+
 Options come from three layers, later ones winning: the code's defaults, a preset
 (``--config``, see :mod:`brdffit.config`), then the flags. Every output is checked before the fit
 runs (an existing file needs ``--force``), so no work is wasted and nothing partial is left.
@@ -42,8 +47,9 @@ def add_parser(sub, parents) -> None:
         "still written, marked success=false).",
     )
     p.add_argument("file", metavar="FILE", help="a .binary MERL table or a .csv/.npz sample list")
-    p.add_argument("--model", "-m", help="a registered model (see `brdffit models`); "
-                   "may come from the preset instead")
+    p.add_argument("--model", "-m", help="a registered model (see `brdffit models`), or "
+                   "several separated by commas (compared side by side); may come from the "
+                   "preset instead")
     p.add_argument("--config", "-c", metavar="PRESET",
                    help="a TOML preset: a path, or a bare name looked up as configs/NAME.toml")
     p.add_argument("--loss", help="residual weighting: linear, cosine, log, relative (+huber)")
@@ -87,14 +93,18 @@ def options_from(args):
     if options.model is None:
         raise UsageError("no model given: pass --model NAME (see `brdffit models`) or a preset "
                          "that names one")
-    model = get_model(options.model)
+    models = [get_model(name.strip()) for name in str(options.model).split(",") if name.strip()]
+    if not models or len({m.name for m in models}) != len(models):
+        raise UsageError(f"--model {options.model!r}: give distinct model names separated by "
+                         f"commas, e.g. --model ggx,gtr,disney")
     if options.cutoff is not None and not 0 < options.cutoff <= 90:
         raise UsageError(f"--cutoff {options.cutoff:g}: give degrees in (0, 90]")
-    check_params(model, flags.init, "--init")
-    check_params(model, flags.fixed, "--fix")
-    options.check_params(model)
+    for model in models:
+        check_params(model, flags.init, "--init")
+        check_params(model, flags.fixed, "--fix")
+        options.check_params(model)
     _check_names(options)
-    return model, options
+    return models, options
 
 
 def _check_names(options) -> None:
@@ -111,7 +121,10 @@ def _check_names(options) -> None:
 def run(args) -> int:
     from ..fitting import fit
 
-    model, options = options_from(args)
+    models, options = options_from(args)
+    if len(models) > 1:
+        return _run_several(args, models, options)
+    model = models[0]
     out, plot, table = (args.out, args.plot, args.table)
     from ..posterior import cli_support as mcmc
 
@@ -139,6 +152,56 @@ def run(args) -> int:
               f"were written and marked success=false", file=sys.stderr)
         return 1
     return 0
+
+
+def _run_several(args, models, options) -> int:
+    """Fit each of ``models`` to the same cells; print the comparison (best first) and the
+    summaries; ``--out`` gets ``{"results": [...]}`` in the same order."""
+    import json
+
+    from ..fitting import fit
+
+    if args.plot or args.table or args.mcmc:
+        raise UsageError("--plot, --table and --mcmc take one model; fit the chosen model "
+                         "again with --model NAME")
+    check_outputs([args.out], args.force)
+    data = read_input(args.file)
+    progress = Progress(quiet=args.quiet)
+    results = []
+    for model in models:
+        progress(f"fitting {model.name} to {args.file}")
+        results.append(fit(data, model, **options.fit_kwargs(), throw=False,
+                           progress=progress if progress.enabled else None))
+    results.sort(key=lambda r: (not r.success, r.cost))
+    text = json.dumps({"results": [json.loads(r.to_json()) for r in results]}, indent=2)
+    if args.json:
+        print(text)
+    else:
+        print(comparison(results))
+        print("\n\n".join(r.summary() for r in results))
+    if args.out:
+        write_text(args.out, text + "\n")
+    failed = [r.model_name for r in results if not r.success]
+    if failed:
+        print(f"brdffit fit: warning: {', '.join(failed)} did not converge; see the summaries",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+def comparison(results) -> str:
+    """A table of fits of one table, in the given order: convergence, cost, the literature's
+    error metrics, free parameters, time."""
+    head = (f"{'rank':>4}  {'model':<14} {'converged':<9} {'cost':>12} {'rmse_log':>10} "
+            f"{'rmse_cosine':>11} {'free':>4} {'time':>7}")
+    rows = [head, "-" * len(head)]
+    for k, r in enumerate(results, 1):
+        rows.append(f"{k:>4}  {r.model_name:<14} {'yes' if r.success else 'NO':<9} "
+                    f"{r.cost:>12.6g} {r.metrics['rmse_log']:>10.4g} "
+                    f"{r.metrics['rmse_cosine']:>11.4g} {len(r.free):>4} {r.wall_time:>6.2f}s")
+    loss = {r.loss for r in results}
+    rows.append(f"(same cells, {'/'.join(sorted(loss))} loss; best first by cost, failed fits last)")
+    return "\n".join(rows)
 
 
 def _posterior(data, result, args, options, progress, mcmc):
