@@ -22,6 +22,12 @@ Every file holds exactly one of two direction layouts plus the three colour colu
 * **NPZ**: one 1-D array per column, stored under the column's name (``np.savez(path, theta_i=...,
   ...)``), all of the same length.
 
+Optional measurement uncertainty (a gonioreflectometer's error bars): either one column
+``sigma`` (the standard deviation of all three channels of the row) or three columns
+``sigma_r, sigma_g, sigma_b``, in the units of ``r, g, b``, every value finite and > 0. The
+:class:`~data_formats.samples.SampleSet` then carries ``sigma`` ``(N, 3)``, and a fit weights
+each residual by it.
+
 No other columns are accepted (a misspelt column must not be ignored silently). Every row must be
 usable: a NaN/inf, a negative colour value, a direction below the horizon (θ > 90°, ``z < 0``) or
 a direction vector that is not unit length is an error (:class:`SampleListFormatError`, naming
@@ -50,6 +56,7 @@ ANGLE_COLUMNS = ("theta_i", "phi_i", "theta_o", "phi_o")
 VECTOR_COLUMNS = ("wix", "wiy", "wiz", "wox", "woy", "woz")
 RGB_COLUMNS = ("r", "g", "b")
 LAYOUTS = {"angles": ANGLE_COLUMNS + RGB_COLUMNS, "vectors": VECTOR_COLUMNS + RGB_COLUMNS}
+SIGMA_COLUMNS = (("sigma",), ("sigma_r", "sigma_g", "sigma_b"))
 SUFFIXES = (".csv", ".npz")
 UNIT_TOLERANCE = 1e-3
 
@@ -62,12 +69,28 @@ def _layout_text() -> str:
     return " or ".join(",".join(cols) for cols in LAYOUTS.values())
 
 
+def _sigma_columns(path, names: set) -> tuple[str, ...]:
+    """The uncertainty columns among ``names`` (one of :data:`SIGMA_COLUMNS`, or none)."""
+    given = [c for group in SIGMA_COLUMNS for c in group if c in names]
+    for group in SIGMA_COLUMNS:
+        if set(given) == set(group):
+            return group
+    if given:
+        raise SampleListFormatError(
+            f"{path}: uncertainty columns {', '.join(given)}; give either sigma (all channels) "
+            f"or all three of sigma_r, sigma_g, sigma_b"
+        )
+    return ()
+
+
 def _pick_layout(path, columns) -> str:
-    """The layout whose column set equals ``columns``; otherwise a precise error."""
+    """The layout whose column set equals ``columns`` (less any uncertainty columns);
+    otherwise a precise error."""
     names = set(columns)
     if len(names) != len(columns):
         dup = sorted({c for c in columns if columns.count(c) > 1})
         raise SampleListFormatError(f"{path}: duplicate column(s) {', '.join(dup)} in the header")
+    names -= set(_sigma_columns(path, names))
     for layout, cols in LAYOUTS.items():
         if names == set(cols):
             return layout
@@ -237,7 +260,26 @@ def _to_sample_set(path: Path, columns, data, rows) -> SampleSet:
         )
     wi, wo = _directions(path, cols, rows, "i"), _directions(path, cols, rows, "o")
     valid = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    return SampleSet(wi=wi, wo=wo, rgb=rgb, valid=valid, name=path.stem, path=str(path))
+    sigma = _sigma(path, cols, rows)
+    return SampleSet(wi=wi, wo=wo, rgb=rgb, valid=valid, name=path.stem, path=str(path),
+                     sigma=sigma)
+
+
+def _sigma(path, cols: dict, rows) -> np.ndarray | None:
+    """``(N, 3)`` standard deviations from the ``sigma`` or ``sigma_r/g/b`` columns, checked
+    positive; ``None`` without them."""
+    group = _sigma_columns(path, set(cols))
+    if not group:
+        return None
+    sigma = np.stack([cols[c] for c in (group * 3 if len(group) == 1 else group)], axis=-1)
+    bad = ~(sigma > 0)
+    if bad.any():
+        i, c = np.argwhere(bad)[0]
+        raise SampleListFormatError(
+            f"{_where(path, rows, i)}, column {group[min(c, len(group) - 1)]!r}: "
+            f"{sigma[i, c]:g} is not a positive standard deviation; give sigma > 0"
+        )
+    return sigma
 
 
 def _check_path(path) -> Path:
@@ -275,15 +317,18 @@ def read_samples(path) -> SampleSet:
 def _columns_of(samples: SampleSet, angles: bool) -> tuple[tuple[str, ...], np.ndarray]:
     keep = np.asarray(samples.valid, bool)
     wi, wo, rgb = (np.asarray(a, float)[keep] for a in (samples.wi, samples.wo, samples.rgb))
+    extra_names, extra = (), np.empty((len(rgb), 0))
+    if samples.sigma is not None:
+        extra_names, extra = SIGMA_COLUMNS[1], np.asarray(samples.sigma, float)[keep]
     if not angles:
-        return LAYOUTS["vectors"], np.concatenate([wi, wo, rgb], axis=1)
+        return LAYOUTS["vectors"] + extra_names, np.concatenate([wi, wo, rgb, extra], axis=1)
 
     def theta_phi(w):
         theta = np.degrees(np.arctan2(np.hypot(w[:, 0], w[:, 1]), w[:, 2]))
         return theta, np.degrees(np.arctan2(w[:, 1], w[:, 0])) % 360.0
 
     (ti, pi), (to, po) = theta_phi(wi), theta_phi(wo)
-    return LAYOUTS["angles"], np.column_stack([ti, pi, to, po, rgb])
+    return LAYOUTS["angles"] + extra_names, np.column_stack([ti, pi, to, po, rgb, extra])
 
 
 def write_samples(path, samples: SampleSet, *, angles: bool = True) -> Path:

@@ -22,6 +22,9 @@ class SampleSet:
         valid: ``(N,)`` bool; ``False`` marks a missing or unusable measurement.
         name: a short label (the file stem), used in titles and summaries.
         path: the source file, if any.
+        sigma: ``None``, or the measurement's standard deviation per sample and channel
+            ``(N, 3)``, in the units of ``rgb`` (1/sr), > 0 where ``valid``. The fitter then
+            weights each residual by it (:func:`brdffit.fitting.data.select`).
     """
 
     wi: np.ndarray
@@ -30,6 +33,7 @@ class SampleSet:
     valid: np.ndarray
     name: str = ""
     path: str | None = None
+    sigma: np.ndarray | None = None
 
     def __post_init__(self):
         n = len(self.rgb)
@@ -37,6 +41,8 @@ class SampleSet:
             arr = getattr(self, field)
             if arr.shape != (n, 3):
                 raise ValueError(f"SampleSet.{field} must have shape ({n}, 3), got {arr.shape}")
+        if self.sigma is not None and np.shape(self.sigma) != (n, 3):
+            raise ValueError(f"SampleSet.sigma must have shape ({n}, 3), got {np.shape(self.sigma)}")
         if self.valid.shape != (n,):
             raise ValueError(f"SampleSet.valid must have shape ({n},), got {self.valid.shape}")
 

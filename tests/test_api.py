@@ -175,3 +175,75 @@ def test_provenance_is_recorded_and_round_trips_through_json(samples_csv, result
 def test_unknown_option_names_the_valid_ones(samples_csv):
     with pytest.raises(TypeError, match=r"unknown option\(s\) max_step; valid options: .*max_steps"):
         brdffit.fit(samples_csv, "ggx", max_step=5)
+
+
+# -- measurement uncertainties --------------------------------------------------------------
+def _noisy_with_sigma(tmp_path, per_channel: bool):
+    """The ggx sample list with Gaussian noise of a known, strongly varying σ per sample, and
+    that σ in the file (one ``sigma`` column or ``sigma_r/g/b``)."""
+    from brdffit.cli.synth import synthesize_samples
+
+    clean = synthesize_samples(brdffit.get_model("ggx"), TRUTH, N_SAMPLES, seed=3)
+    rng = np.random.default_rng(11)
+    rel = rng.choice([0.005, 0.2], size=(N_SAMPLES, 1))  # good and bad samples, mixed
+    sigma = rel * clean.rgb + 1e-4 if per_channel else np.repeat(rel * clean.rgb.mean(1, keepdims=True) + 1e-4, 3, 1)
+    rgb = np.clip(clean.rgb + sigma * rng.standard_normal(sigma.shape), 0, None)
+    extra = ({"sigma_r": sigma[:, 0], "sigma_g": sigma[:, 1], "sigma_b": sigma[:, 2]}
+             if per_channel else {"sigma": sigma[:, 0]})
+    path = tmp_path / ("rgb-sigma.csv" if per_channel else "sigma.csv")
+    cols = {"wix": clean.wi[:, 0], "wiy": clean.wi[:, 1], "wiz": clean.wi[:, 2],
+            "wox": clean.wo[:, 0], "woy": clean.wo[:, 1], "woz": clean.wo[:, 2],
+            "r": rgb[:, 0], "g": rgb[:, 1], "b": rgb[:, 2], **extra}
+    lines = [",".join(cols)] + [",".join(f"{v:.17g}" for v in row)
+                                for row in np.column_stack(list(cols.values()))]
+    path.write_text("\n".join(lines) + "\n")
+    return path, sigma
+
+
+def test_sigma_columns_are_read_and_weight_the_residuals(tmp_path):
+    from data_formats.samplelist import SampleListFormatError, read_samples
+
+    path, sigma = _noisy_with_sigma(tmp_path, per_channel=True)
+    s = read_samples(path)
+    np.testing.assert_allclose(s.sigma, sigma, rtol=1e-15)
+    one, _ = _noisy_with_sigma(tmp_path, per_channel=False)
+    assert read_samples(one).sigma.shape == (N_SAMPLES, 3)
+    weighted = brdffit.fit(path, "ggx", loss="linear")
+    plain = brdffit.fit(dataclass_without_sigma(s), "ggx", loss="linear")
+    # χ²/dof ≈ 1 when the residuals are divided by the σ the noise was drawn with
+    dof = 3 * N_SAMPLES - 7
+    assert 0.8 < 2 * weighted.cost / dof < 1.2
+    # weighting by 1/σ ignores the bad samples: closer to the truth than the unweighted fit
+    err_w = abs(weighted.params["alpha"] - TRUTH["alpha"])
+    err_p = abs(plain.params["alpha"] - TRUTH["alpha"])
+    assert err_w < 0.5 * err_p
+    bad = tmp_path / "bad.csv"
+    bad.write_text(path.read_text().replace("sigma_b", "sigma_x"))
+    with pytest.raises(SampleListFormatError, match="sigma_r, sigma_g, sigma_b"):
+        read_samples(bad)
+
+
+def dataclass_without_sigma(s):
+    import dataclasses
+
+    return dataclasses.replace(s, sigma=None)
+
+
+def test_sigma_enters_the_posterior_likelihood(tmp_path):
+    import warnings
+
+    path, _ = _noisy_with_sigma(tmp_path, per_channel=True)
+    steps = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a short chain: too short for emcee's 50 τ rule
+        post = brdffit.sample_posterior(
+            path, "ggx", loss="linear", nwalkers=16, nsteps=40, burn=10, subsample=None,
+            progress=lambda event, info: steps.append(info["step"]))
+    assert post.noise == {"mode": "measured", "sigma": 1.0, "sigma_ls": post.noise["sigma_ls"]}
+    assert 0.8 < post.noise["sigma_ls"] < 1.2  # residuals in units of their own σ
+    assert steps == list(range(1, 41))
+    df = post.to_dataframe()
+    assert list(df.index) == post.sampled and {"p16", "p50", "p84", "tau", "ess"} <= set(df.columns)
+    html = post._repr_html_()
+    assert html.count("<tr>") == 1 + len(post.sampled) and "acceptance" in html
+    assert "\n" not in repr(post) and repr(post).startswith("PosteriorResult('ggx'")
