@@ -135,7 +135,7 @@ def test_bare_names_paths_and_bad_files(tmp_path, monkeypatch):
     (tmp_path / "configs").mkdir()
     (tmp_path / "configs" / "ggx.toml").write_text('loss = "linear"\n')
     assert load_config("ggx").loss == "linear"  # ./configs wins over the checkout
-    with pytest.raises(ConfigError, match="no preset named 'nope'.*presets in .*ggx"):
+    with pytest.raises(ConfigError, match="no preset named 'nope'.*known presets: .*ggx"):
         load_config("nope")
     with pytest.raises(ConfigError, match="config file 'some/where.toml' not found"):
         load_config("some/where.toml")

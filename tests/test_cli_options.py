@@ -1,0 +1,48 @@
+"""``brdffit fit`` exposes the fit's options as flags, and its advice names those flags."""
+
+import json
+
+import pytest
+
+from brdffit.cli import main
+from brdffit.cli._words import cli_words
+from test_api import write_sample_list
+
+
+@pytest.fixture(scope="module")
+def samples_csv(tmp_path_factory):
+    return write_sample_list(tmp_path_factory.mktemp("cli-options") / "gold.csv")
+
+
+def test_solver_flags_reach_the_fit_and_its_provenance(samples_csv, tmp_path, capsys):
+    out = tmp_path / "r.json"
+    code = main(["fit", str(samples_csv), "--model", "ggx", "--max-steps", "2", "--rtol", "1e-7",
+                 "--atol", "1e-9", "--edm-tol", "0", "--covariance", "gn", "--precision",
+                 "float64", "--solver", "lm", "--multistart", "0", "--bound", "alpha=0.01,0.5",
+                 "--out", str(out), "--quiet"])
+    captured = capsys.readouterr()
+    assert code == 1  # two steps cannot converge from the data-driven start
+    assert "Increase `--max-steps`" in captured.err and "`max_steps`" not in captured.err
+    assert "Increase `--max-steps`" in captured.out  # the summary's message too
+    result = json.loads(out.read_text())
+    assert result["steps"] <= 2 and result["covariance"] == "gn"
+    opts = result["provenance"]["options"]
+    assert opts["max_steps"] == 2 and opts["rtol"] == 1e-7 and opts["atol"] == 1e-9
+    assert opts["edm_tol"] == 0 and opts["bounds"] == {"alpha": [0.01, 0.5]}
+    assert result["provenance"]["input"]["path"] == str(samples_csv.resolve())
+
+
+def test_bad_bound_flag_is_a_one_line_usage_error(samples_csv, capsys):
+    assert main(["fit", str(samples_csv), "--model", "ggx", "--bound", "alpha=0.5"]) == 2
+    assert "--bound 'alpha=0.5': expected NAME=LOWER,UPPER" in capsys.readouterr().err
+
+
+def test_library_advice_is_reworded_as_flags():
+    assert cli_words("Increase `max_steps` or start elsewhere.") == \
+        "Increase `--max-steps` or start elsewhere."
+    assert cli_words("Try another `init`, `multistart`, or the `log` loss.") == \
+        "Try another `--init`, `--multistart`, or `--loss log`."
+    assert cli_words("relax `cutoff`/`subsample`.") == "relax `--cutoff`/`--subsample`."
+    assert cli_words("pass nsteps >= 900 (or use a smaller subsample to make steps cheaper)") \
+        == "pass --steps 900 or more (or use a smaller --mcmc-subsample to make steps cheaper)"
+    assert cli_words("Try nwalkers=32") == "Try --walkers 32"
