@@ -46,3 +46,30 @@ def test_library_advice_is_reworded_as_flags():
     assert cli_words("pass nsteps >= 900 (or use a smaller subsample to make steps cheaper)") \
         == "pass --steps 900 or more (or use a smaller --mcmc-subsample to make steps cheaper)"
     assert cli_words("Try nwalkers=32") == "Try --walkers 32"
+
+
+def test_words_a_user_reads(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "300")  # argparse wraps help text at the terminal width
+    from brdffit import get_model
+    from brdffit.errors import UnknownNameError
+
+    with pytest.raises(UnknownNameError) as err:
+        get_model("ggx").param("F0")
+    assert str(err.value).startswith("model 'ggx' has no parameter 'F0'; valid choices: ")
+    assert str(err.value).endswith("Did you mean 'f0'?")
+    assert main(["demo", "--help"]) == 0
+    assert "(1% noise)" in capsys.readouterr().out
+    assert main(["fit", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "(FIG.png and" not in text and "FIG-slice.png, FIG-peaks.png" in text
+
+
+def test_demo_names_channels_as_the_summary_does():
+    from brdffit.cli.demo import comparison
+
+    class Result:
+        params = {"f0": [0.9, 0.6, 0.3]}
+        stderr = {"f0": [0.01, 0.01, 0.01]}
+
+    text = comparison(Result(), {"f0": (0.9, 0.6, 0.3)})
+    assert "f0[0]" in text and "f0[r]" not in text
