@@ -9,6 +9,8 @@ What it adds to the low-level fit (whose arguments it passes on unchanged):
   global ``jax.config`` is left as it was (the library never changes it);
 * **progress**: ``progress=True`` is a ``tqdm.auto`` bar (:mod:`brdffit.progress`), a callable
   still gets the fitter's events;
+* **monochrome data**: a sample list with one value column fits a grey model
+  (:mod:`brdffit.grey`);
 * **provenance**: the result's ``provenance`` records the input (path, SHA-256), every option
   with its defaults resolved, the versions of brdffit, JAX and optimistix, and the date.
 """
@@ -124,7 +126,8 @@ def fit(table, model, *, progress=None, throw: bool = True, **options):
     Args:
         table: a path (``str`` or ``PathLike``; ``.binary`` MERL table, ``.csv``/``.npz`` sample
             list) or anything with ``.to_samples()``.
-        model: a registry name or a :class:`~brdffit.models.Model`.
+        model: a registry name or a :class:`~brdffit.models.Model`. Monochrome data (a
+            sample list with one ``value`` column) fit its grey variant (:mod:`brdffit.grey`).
         progress: ``True`` (a ``tqdm.auto`` bar), ``None``/``False``, or a callable
             ``progress(event, info)`` (events in :func:`brdffit.fitting.solve.fit`).
         throw: raise :class:`~brdffit.errors.FitError` when the fit does not converge.
@@ -138,6 +141,8 @@ def fit(table, model, *, progress=None, throw: bool = True, **options):
     import jax
 
     from .fitting import solve
+    from .grey import is_monochrome, tie_options, untie
+    from .models.registry import get_model
     from .progress import resolve
 
     unknown = sorted(set(options) - set(_fit_defaults()))
@@ -147,11 +152,18 @@ def fit(table, model, *, progress=None, throw: bool = True, **options):
             f"{', '.join(sorted(_fit_defaults()))}, progress, throw"
         )
     data, path = load(table)
+    solve_options, tied = options, {}
+    if is_monochrome(data):
+        solve_options, tied = tie_options(get_model(model), options)
     callback, bar = resolve(progress)
     try:
         with jax.enable_x64(True):
-            result = solve.fit(data, model, progress=callback, throw=throw, **options)
+            result = solve.fit(data, model, progress=callback, throw=throw, **solve_options)
     finally:
         if bar is not None:
             bar.close()
-    return dataclasses.replace(result, provenance=provenance(data, path, model, options))
+    record = provenance(data, path, model, options)
+    if tied:
+        result = untie(result, get_model(model), tied)
+        record.update(channels=1, tied=tied)
+    return dataclasses.replace(result, provenance=record)

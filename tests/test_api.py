@@ -247,3 +247,29 @@ def test_sigma_enters_the_posterior_likelihood(tmp_path):
     html = post._repr_html_()
     assert html.count("<tr>") == 1 + len(post.sampled) and "acceptance" in html
     assert "\n" not in repr(post) and repr(post).startswith("PosteriorResult('ggx'")
+
+
+def test_monochrome_sample_list_fits_a_grey_model(tmp_path):
+    from brdffit.cli.synth import synthesize_samples
+    from data_formats.samplelist import read_samples
+
+    grey = {"diffuse": 0.05, "f0": 0.5, "alpha": 0.2}
+    s = synthesize_samples(brdffit.get_model("ggx"), grey, N_SAMPLES, seed=3)
+    path = tmp_path / "grey.csv"
+    rows = np.column_stack([s.wi, s.wo, s.rgb[:, 0]])
+    path.write_text("wix,wiy,wiz,wox,woy,woz,value\n" +
+                    "\n".join(",".join(f"{v:.17g}" for v in row) for row in rows) + "\n")
+    data = read_samples(path)
+    assert data.channels == 1 and np.all(data.rgb == data.rgb[:, :1])
+    r = brdffit.fit(path, "ggx")
+    assert r.success and r.free == ["diffuse[0]", "f0[0]", "alpha"] and r.fixed == []
+    assert r.params["f0"] == [r.params["f0"][0]] * 3  # grey
+    for name, true in grey.items():
+        np.testing.assert_allclose(r.params[name], true, rtol=1e-4)
+    assert r.n_cells == N_SAMPLES
+    df = r.to_dataframe()
+    assert df.loc["f0[2]", "status"] == "= f0[0] (grey)"
+    assert df.loc["f0[2]", "stderr"] == df.loc["f0[0]", "stderr"] > 0
+    assert "grey fit of monochrome data" in r.summary()
+    with pytest.raises(brdffit.BrdffitError, match="base_color mixing the channels"):
+        brdffit.fit(path, "disney")

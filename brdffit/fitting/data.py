@@ -8,7 +8,8 @@ Selection happens in two stages, so that every table of one layout compiles once
 * **dynamic** (weights): the validity mask, non-finite values and negative values become zero
   weights and zero targets. Masked cells cost compute but never change the shapes. A sample
   list with measurement uncertainties (``SampleSet.sigma``) weights each residual by
-  ``1/σ`` carried through the loss's transform (:func:`sigma_weight`).
+  ``1/σ`` carried through the loss's transform (:func:`sigma_weight`); a monochrome one
+  (``SampleSet.channels == 1``) gives channels 1 and 2 zero weight.
 
 Burley 2012 §3.1/§4.7: data past about 75–80° is extrapolated in the MERL set; ``cutoff=80``
 drops it. The default keeps everything (the caller decides).
@@ -153,6 +154,8 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
     if getattr(samples, "sigma", None) is not None:
         sigma = _gather(np.asarray(samples.sigma, float), rows, n, 1.0, "float64")
         sw = good[:, None] * sigma_weight(loss, rgb, sigma, wi[:, 2:3], wo[:, 2:3])
+    if getattr(samples, "channels", 3) == 1:  # monochrome: one measurement, in channel 0
+        sw[:, 1:] = 0.0
     arrays = [jnp.asarray(a) for a in (wi, wo, rgb, sw)]  # explicit transfers are the fast path
     data = _device(*arrays, loss=loss, chunks=chunks, dtype=dtype)
     host = (wi[:k], wo[:k], rgb[:k], good[:k])

@@ -182,6 +182,8 @@ class FitResult:
             tag = " (fixed)" if n in self.fixed else ""
             if n in self.at_bound:
                 tag = f" (at {self.at_bound[n]} bound)"
+            if n in (self.provenance.get("tied") or {}):
+                tag = f" (= {self.provenance['tied'][n]}, grey fit of monochrome data)"
             err = f" ± {flat_se[n]:.3g}" if n in self.free and n not in self.at_bound else ""
             lines.append(f"  {n:>18} = {flat_x[n]:.6g}{err}{tag}")
         lines.append("  " + ", ".join(f"{k} {v:.4g}" for k, v in self.metrics.items()))
@@ -201,7 +203,8 @@ class FitResult:
     def rows(self) -> list[dict]:
         """One dict per flat scalar (``f0[0]`` ...): ``name``, ``value``, ``stderr`` (NaN for
         fixed scalars and those at a bound), ``lower``/``upper`` (the bounds the fit used),
-        ``status`` (``free``, ``fixed``, ``at lower bound``, ``at upper bound``),
+        ``status`` (``free``, ``fixed``, ``at lower bound``, ``at upper bound``, or
+        ``= f0[0] (grey)`` for the copied components of a grey fit),
         ``at_bound``."""
         model = get_model(self.model_name)
         lo, hi = model.flat_bounds()
@@ -210,10 +213,13 @@ class FitResult:
             idx = [i for i, n in enumerate(self.names) if n == name or n.startswith(name + "[")]
             lo[idx], hi[idx] = a, b
         se = np.sqrt(np.clip(np.diag(np.asarray(self.cov, float)), 0, None))
+        tied = self.provenance.get("tied") or {}
         out = []
         for i, n in enumerate(self.names):
             fixed, bound = n in self.fixed, self.at_bound.get(n)
             status = "fixed" if fixed else (f"at {bound} bound" if bound else "free")
+            if n in tied:  # a grey fit of monochrome data: a copy of component 0
+                status = f"= {tied[n]} (grey)"
             out.append({
                 "name": n, "value": float(np.asarray(self.x, float)[i]),
                 "stderr": float("nan") if fixed or bound else float(se[i]),
