@@ -273,3 +273,14 @@ def test_monochrome_sample_list_fits_a_grey_model(tmp_path):
     assert "grey fit of monochrome data" in r.summary()
     with pytest.raises(brdffit.BrdffitError, match="base_color mixing the channels"):
         brdffit.fit(path, "disney")
+
+
+def test_progress_bar_counts_posterior_steps():
+    from brdffit.progress import Bar
+
+    out = io.StringIO()
+    bar = Bar("posterior", file=out)
+    for k in range(1, 6):
+        bar("sample-step", {"step": k, "of": 5})
+    bar.close()
+    assert "posterior" in out.getvalue() and "5/5" in out.getvalue()
