@@ -56,7 +56,7 @@ def comparison(result, truth: dict) -> str:
 
 def run(args) -> int:
     from .. import get_model
-    from ..fitting import fit
+    from ..api import fit
     from .plotting import figure_paths, write_figures
     from .synth import synthesize_table
 

@@ -30,6 +30,7 @@ def sample_info(samples) -> dict:
     rgb = np.asarray(samples.rgb, float)[valid]
     out = {"format": "sample list", "path": samples.path, "samples": len(samples),
            "valid": int(valid.sum()), "valid_fraction": float(valid.mean()) if len(valid) else 0.0,
+           "channels": int(getattr(samples, "channels", 3)),
            "sigma": getattr(samples, "sigma", None) is not None}
     if rgb.size:
         for c, name in enumerate("rgb"):
@@ -74,6 +75,7 @@ def format_info(figures: dict) -> str:
         f"sample list {name!r}" + (f" ({f['path']})" if f.get("path") else ""),
         f"  samples      {f['samples']:,} direction pairs",
         f"  valid        {f['valid']:,} ({f['valid_fraction']:.1%})",
+        f"  channels     {'1 (monochrome: the value in R, G and B)' if f.get('channels') == 1 else '3 (RGB)'}",
         f"  uncertainty  {'sigma given per sample' if f.get('sigma') else 'none (no sigma columns)'}",
         "  channel      min          median       max",
     ]

@@ -273,6 +273,7 @@ class FitResult:
     def from_dict(cls, d: dict) -> FitResult:
         d = dict(d)
         d.setdefault("provenance", {})
+        d.pop("posterior", None)  # `brdffit fit --mcmc --out` nests the posterior's figures
         d["stderr"] = {k: _from_json_safe(v) for k, v in d["stderr"].items()}
         d["x"] = np.asarray(d["x"], float)
         d["cov"] = np.asarray(_from_json_safe(d["cov"]), float).reshape(len(d["x"]), len(d["x"]))
