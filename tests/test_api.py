@@ -186,7 +186,8 @@ def _noisy_with_sigma(tmp_path, per_channel: bool):
     clean = synthesize_samples(brdffit.get_model("ggx"), TRUTH, N_SAMPLES, seed=3)
     rng = np.random.default_rng(11)
     rel = rng.choice([0.005, 0.2], size=(N_SAMPLES, 1))  # good and bad samples, mixed
-    sigma = rel * clean.rgb + 1e-4 if per_channel else np.repeat(rel * clean.rgb.mean(1, keepdims=True) + 1e-4, 3, 1)
+    level = clean.rgb if per_channel else np.repeat(clean.rgb.mean(1, keepdims=True), 3, 1)
+    sigma = rel * level + 1e-4
     rgb = np.clip(clean.rgb + sigma * rng.standard_normal(sigma.shape), 0, None)
     extra = ({"sigma_r": sigma[:, 0], "sigma_g": sigma[:, 1], "sigma_b": sigma[:, 2]}
              if per_channel else {"sigma": sigma[:, 0]})

@@ -70,19 +70,21 @@ def format_info(figures: dict) -> str:
     """A sample list's figures as aligned text, laid out as a MERL table's
     (:meth:`data_formats.merl.MERLTable.info_text`): header, counts, a channel table, the peak."""
     f = figures
+    channels = "1 (monochrome: the value in R, G and B)" if f.get("channels") == 1 else "3 (RGB)"
+    sigma = "sigma given per sample" if f.get("sigma") else "none (no sigma columns)"
     name = Path(f["path"]).stem if f.get("path") else ""
     lines = [
         f"sample list {name!r}" + (f" ({f['path']})" if f.get("path") else ""),
         f"  samples      {f['samples']:,} direction pairs",
         f"  valid        {f['valid']:,} ({f['valid_fraction']:.1%})",
-        f"  channels     {'1 (monochrome: the value in R, G and B)' if f.get('channels') == 1 else '3 (RGB)'}",
-        f"  uncertainty  {'sigma given per sample' if f.get('sigma') else 'none (no sigma columns)'}",
+        f"  channels     {channels}",
+        f"  uncertainty  {sigma}",
         "  channel      min          median       max",
     ]
     for ch in "rgb":
         if f"{ch}_min" in f:
-            lines.append(f"  {ch.upper()}            {f[ch + '_min']:<12.5g} {f[ch + '_median']:<12.5g} "
-                         f"{f[ch + '_max']:<12.5g}")
+            low, mid, high = (f[f"{ch}_{k}"] for k in ("min", "median", "max"))
+            lines.append(f"  {ch.upper()}            {low:<12.5g} {mid:<12.5g} {high:<12.5g}")
     if "peak_rgb" in f:
         lines.append(f"  peak         {_fmt(f['peak_rgb'])} (largest r+g+b) at "
                      f"theta_i={f['peak_theta_i_deg']:.3f} deg, "

@@ -15,7 +15,8 @@ Display: both images share one logarithmic tone mapping of the luminance
 (:func:`._style.log_tonemap`: the measured median at 0.4, the measured 99.9th percentile at
 white, hue kept), so the diffuse body, the Fresnel peak and the whole specular peak are all
 readable; Burley's Fig. 1 uses an exposure and gamma instead, which saturates the peak (every
-cell with θh below about 8° is white on a shiny MERL material). The ratio panel is ``log10((fit + ε)/(measured + ε))`` (ε of :mod:`.error`),
+cell with θh below about 8° is white on a shiny MERL material). The ratio panel is
+``log10((fit + ε)/(measured + ε))`` (ε of :mod:`.error`),
 the Rec. 709-weighted mean over the channels, on a diverging colormap with symmetric limits.
 Missing cells are drawn in :data:`._style.MISSING_RGB`.
 """
