@@ -97,13 +97,6 @@ def test_html_view_and_dataframe_have_one_row_per_scalar(result):
     assert re.search(r"<td>alpha</td><td>0\.(2000|1999)\d* ± 0\.0*\d\d</td>", html)
 
 
-def test_dataframe_marks_fixed_and_at_bound_scalars(samples_csv):
-    r = brdffit.fit(samples_csv, "ggx", fixed={"f0": 0.5}, throw=False)
-    df = r.to_dataframe()
-    assert (df.loc[["f0[0]", "f0[1]", "f0[2]"], "status"] == "fixed").all()
-    assert df.loc[["f0[0]", "f0[1]", "f0[2]"], "stderr"].isna().all()
-
-
 def test_value_with_error_keeps_the_digits_the_error_supports():
     from brdffit.fitting.result import value_with_error
 

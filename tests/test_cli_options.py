@@ -4,6 +4,7 @@ import json
 
 import pytest
 
+from brdffit import FitResult
 from brdffit.cli import main
 from brdffit.cli._words import cli_words
 from test_api import write_sample_list
@@ -19,7 +20,7 @@ def test_solver_flags_reach_the_fit_and_its_provenance(samples_csv, tmp_path, ca
     code = main(["fit", str(samples_csv), "--model", "ggx", "--max-steps", "2", "--rtol", "1e-7",
                  "--atol", "1e-9", "--edm-tol", "0", "--covariance", "gn", "--precision",
                  "float64", "--solver", "lm", "--multistart", "0", "--bound", "alpha=0.01,0.5",
-                 "--out", str(out), "--quiet"])
+                 "--fix", "f0=0.5", "--out", str(out), "--quiet"])
     captured = capsys.readouterr()
     assert code == 1  # two steps cannot converge from the data-driven start
     assert "Increase `--max-steps`" in captured.err and "`max_steps`" not in captured.err
@@ -30,6 +31,10 @@ def test_solver_flags_reach_the_fit_and_its_provenance(samples_csv, tmp_path, ca
     assert opts["max_steps"] == 2 and opts["rtol"] == 1e-7 and opts["atol"] == 1e-9
     assert opts["edm_tol"] == 0 and opts["bounds"] == {"alpha": [0.01, 0.5]}
     assert result["provenance"]["input"]["path"] == str(samples_csv.resolve())
+    df = FitResult.from_json(out).to_dataframe()  # the bounds and the fixed scalars it used
+    assert (df.loc[["f0[0]", "f0[1]", "f0[2]"], "status"] == "fixed").all()
+    assert df.loc[["f0[0]", "f0[1]", "f0[2]"], "stderr"].isna().all()
+    assert df.loc["alpha", "lower"] == 0.01 and df.loc["alpha", "upper"] == 0.5
 
 
 def test_bad_bound_flag_is_a_one_line_usage_error(samples_csv, capsys):
