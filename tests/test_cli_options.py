@@ -31,6 +31,7 @@ def test_solver_flags_reach_the_fit_and_its_provenance(samples_csv, tmp_path, ca
     assert opts["max_steps"] == 2 and opts["rtol"] == 1e-7 and opts["atol"] == 1e-9
     assert opts["edm_tol"] == 0 and opts["bounds"] == {"alpha": [0.01, 0.5]}
     assert result["provenance"]["input"]["path"] == str(samples_csv.resolve())
+    assert result["provenance"]["config"] == ["command line"]  # no preset merged in
     df = FitResult.from_json(out).to_dataframe()  # the bounds and the fixed scalars it used
     assert (df.loc[["f0[0]", "f0[1]", "f0[2]"], "status"] == "fixed").all()
     assert df.loc[["f0[0]", "f0[1]", "f0[2]"], "stderr"].isna().all()
@@ -51,6 +52,8 @@ def test_library_advice_is_reworded_as_flags():
     assert cli_words("pass nsteps >= 900 (or use a smaller subsample to make steps cheaper)") \
         == "pass --steps 900 or more (or use a smaller --mcmc-subsample to make steps cheaper)"
     assert cli_words("Try nwalkers=32") == "Try --walkers 32"
+    assert cli_words("nwalkers must be even; got nsteps=10, burn=20") == \
+        "--walkers must be even; got --steps=10, --burn 20"
 
 
 def test_words_a_user_reads(capsys, monkeypatch):

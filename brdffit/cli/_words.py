@@ -21,11 +21,15 @@ FLAG_FOR = {
 
 _RULES = (
     (re.compile(r"the `(\w+)` loss"), lambda m: f"`--loss {m.group(1)}`"),
-    (re.compile(r"`noise=<positive number>`"), lambda m: "`--noise sampled`"),
+    (re.compile(r"pass `noise=<positive number>` to set the noise scale yourself"),
+     lambda m: "give the data sigma columns and pass `--noise measured`"),
     (re.compile(r"\bnsteps >= (\d+)"), lambda m: f"--steps {m.group(1)} or more"),
     (re.compile(r"\bnwalkers=(\d+)"), lambda m: f"--walkers {m.group(1)}"),
     (re.compile(r"a larger nsteps"), lambda m: "a larger --steps"),
     (re.compile(r"a smaller subsample"), lambda m: "a smaller --mcmc-subsample"),
+    (re.compile(r"\bnwalkers\b"), lambda m: "--walkers"),
+    (re.compile(r"\bnsteps\b"), lambda m: "--steps"),
+    (re.compile(r"\bburn=(\d+)"), lambda m: f"--burn {m.group(1)}"),
     (re.compile(r"`(\w+)`"), lambda m: f"`{FLAG_FOR.get(m.group(1), m.group(1))}`"),
 )
 

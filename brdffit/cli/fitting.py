@@ -168,7 +168,8 @@ def run(args) -> int:
     try:
         result = fit(data, model, **options.fit_kwargs(), throw=False,
                      progress=progress if progress.enabled else None)
-        result = dataclasses.replace(result, message=cli_words(result.message))
+        result = dataclasses.replace(result, message=cli_words(result.message), provenance={
+            **result.provenance, "command": "brdffit fit", "config": list(options.sources)})
         post = _posterior(data, result, args, options, progress, mcmc)
     except BrdffitError as exc:  # the library's advice, in flags
         raise UsageError(cli_words(str(exc))) from exc
