@@ -7,9 +7,10 @@ registry) → :mod:`brdffit.fitting` (least squares) and :mod:`brdffit.posterior
 :mod:`brdffit.cli`.
 
 The names below load their modules on first use (PEP 562), so ``import brdffit`` and
-``brdffit --help`` do not pay for importing JAX. The library never changes ``jax.config``;
-call ``jax.config.update("jax_enable_x64", True)`` yourself for float64 (the CLI and the tests
-do).
+``brdffit --help`` do not pay for importing JAX. The library never changes ``jax.config``:
+:func:`brdffit.fit` and :func:`brdffit.sample_posterior` run inside ``jax.enable_x64(True)``
+(float64 for the duration of the call, the global setting untouched), and the low-level
+:func:`brdffit.fitting.fit` uses whatever the caller set.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ _LAZY = {
     "get_model": ".models",
     "register": ".models",
     "FitResult": ".fitting",
-    "fit": ".fitting",
+    "fit": ".api",
     "get_loss": ".fitting",
     "PosteriorResult": ".posterior",
     "sample_posterior": ".posterior",

@@ -12,11 +12,15 @@ command-line flags), a later layer winning key by key. Layout (every key optiona
     seed = 0                      # for subsampling and multi-start
     multistart = 0                # extra random starts, best kept
 
+    covariance = "sandwich"       # or "gn"
+
     [solver]                      # solver and its tolerances
     name = "lm"
     rtol = 1e-8
     atol = 1e-8
+    ftol = 1e-9                   # converged when the best step would lower the cost by < ftol × cost
     max_steps = 256
+    precision = "float64"         # or "float32" model evaluation
 
     [init]                        # start values: a number, or [r, g, b] for an RGB parameter
     alpha = 0.1
@@ -27,9 +31,10 @@ command-line flags), a later layer winning key by key. Layout (every key optiona
 
 Unknown keys and wrong types raise :class:`~brdffit.errors.ConfigError` naming the key and the
 valid choices; unknown model or parameter names raise :class:`~brdffit.errors.UnknownNameError`.
-Presets are loaded by path (``configs/`` is not part of the installed package); a bare name such
-as ``ggx`` is looked up as ``configs/ggx.toml`` in the working directory, then in the checkout
-this module was imported from.
+Presets are loaded by path or by a bare name such as ``ggx``, looked up as ``ggx.toml`` in
+``./configs/`` (the working directory), then among the presets installed with the package
+(the wheel carries the checkout's ``configs/`` as ``brdffit/configs/``), then in the checkout
+this module was imported from (an editable install).
 """
 
 from __future__ import annotations
@@ -49,12 +54,15 @@ _SCALARS = {  # key -> (types, check, what the check wants)
     "subsample": (int, lambda v: v > 0, "a positive integer"),
     "seed": (int, lambda v: v >= 0, "a non-negative integer"),
     "multistart": (int, lambda v: v >= 0, "a non-negative integer"),
+    "covariance": (str, lambda v: v in ("sandwich", "gn"), '"sandwich" or "gn"'),
 }
 _SOLVER = {
     "name": (str, None, "a solver name"),
     "rtol": ((int, float), lambda v: v > 0, "a positive number"),
     "atol": ((int, float), lambda v: v > 0, "a positive number"),
     "max_steps": (int, lambda v: v > 0, "a positive integer"),
+    "ftol": ((int, float), lambda v: 0 < v < 1, "a number in (0, 1)"),
+    "precision": (str, lambda v: v in ("float64", "float32"), '"float64" or "float32"'),
 }
 _TABLES = ("init", "fixed", "bounds", "solver")
 _FREE_TEXT = ("description",)
@@ -65,7 +73,9 @@ VALID_KEYS = tuple(_SCALARS) + _TABLES + _FREE_TEXT
 class FitOptions:
     """Options for :func:`brdffit.fit`; ``None`` (or an empty mapping) means "the code's default".
 
-    ``solver`` holds the solver name; ``rtol``, ``atol``, ``max_steps`` its tolerances.
+    ``solver`` holds the solver name; ``rtol``, ``atol``, ``ftol``, ``max_steps`` its
+    tolerances, ``precision`` the model evaluation's dtype; ``covariance`` how standard errors
+    are estimated.
     ``init`` and ``fixed`` map parameter names to a number or an RGB triple; ``bounds`` maps
     parameter names to ``(lower, upper)``. ``sources`` lists the presets merged in.
     """
@@ -80,6 +90,9 @@ class FitOptions:
     rtol: float | None = None
     atol: float | None = None
     max_steps: int | None = None
+    ftol: float | None = None
+    precision: str | None = None
+    covariance: str | None = None
     init: Mapping = dataclasses.field(default_factory=dict)
     fixed: Mapping = dataclasses.field(default_factory=dict)
     bounds: Mapping = dataclasses.field(default_factory=dict)
@@ -108,7 +121,7 @@ class FitOptions:
     def fit_kwargs(self) -> dict:
         """Keyword arguments for :func:`brdffit.fit`: only what was set (the model excluded)."""
         keys = ("loss", "solver", "cutoff", "subsample", "seed", "multistart",
-                "rtol", "atol", "max_steps")
+                "rtol", "atol", "ftol", "max_steps", "precision", "covariance")
         kwargs = {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
         for k in ("init", "fixed", "bounds"):
             if getattr(self, k):
@@ -212,6 +225,17 @@ def parse_config(data: Mapping, source: str = "<config>") -> FitOptions:
     return FitOptions(**opts)
 
 
+#: Where a bare preset name is looked for, in order (see the module docstring).
+def preset_folders() -> list[Path]:
+    here = Path(__file__).resolve().parent
+    return [Path("configs"), here / "configs", here.parent / "configs"]
+
+
+def available_presets() -> list[str]:
+    """Names of the presets found in :func:`preset_folders`, sorted."""
+    return sorted({p.stem for f in preset_folders() if f.is_dir() for p in f.glob("*.toml")})
+
+
 def find_config(name_or_path) -> Path:
     """The preset file for a path, or for a bare name (``ggx`` → ``configs/ggx.toml``)."""
     path = Path(name_or_path)
@@ -219,16 +243,17 @@ def find_config(name_or_path) -> Path:
         return path
     bare = path.parent == Path(".") and path.suffix == ""
     if bare:
-        checkout = Path(__file__).resolve().parent.parent / "configs"
-        for folder in (Path("configs"), checkout):
+        for folder in preset_folders():
             candidate = folder / f"{path.name}.toml"
             if candidate.is_file():
                 return candidate
-        found = sorted(p.stem for p in checkout.glob("*.toml")) if checkout.is_dir() else []
-        known = f"; presets in {checkout}: {', '.join(found)}" if found else ""
+        found = available_presets()
+        close = difflib.get_close_matches(path.name, found, n=1)
+        hint = f" Did you mean {close[0]!r}?" if close else ""
+        known = f"; known presets: {', '.join(found)}" if found else ""
         raise ConfigError(
-            f"no preset named {path.name!r} (looked for configs/{path.name}.toml here and in the "
-            f"checkout){known}; pass a path to a .toml file"
+            f"no preset named {path.name!r} (looked for {path.name}.toml in ./configs and among "
+            f"the installed presets){known}.{hint} Or pass a path to a .toml file"
         )
     raise ConfigError(f"config file {str(path)!r} not found; pass a path to a .toml preset")
 

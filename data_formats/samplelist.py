@@ -14,6 +14,9 @@ Every file holds exactly one of two direction layouts plus the three colour colu
 ``wix, wiy, wiz,``     unit direction vectors in the shading frame (z is the normal), pointing
 ``wox, woy, woz``      away from the surface; length 1 within 1e-3 (renormalized on reading).
 ``r, g, b``            the BRDF f_r in 1/sr, **without** the cosine factor (what MERL stores); ≥ 0.
+*or* ``value``         one monochrome f_r per row (a single-channel gonioreflectometer): the
+                       :class:`~data_formats.samples.SampleSet` holds it in all three channels
+                       and says ``channels == 1``; a fit then fits a grey model.
 =====================  ===========================================================================
 
 * **CSV**: comma-separated, a header row naming the columns is required (any order, names
@@ -21,6 +24,12 @@ Every file holds exactly one of two direction layouts plus the three colour colu
   comments. Numbers in any form Python's ``float`` reads.
 * **NPZ**: one 1-D array per column, stored under the column's name (``np.savez(path, theta_i=...,
   ...)``), all of the same length.
+
+Optional measurement uncertainty (a gonioreflectometer's error bars): either one column
+``sigma`` (the standard deviation of all three channels of the row) or three columns
+``sigma_r, sigma_g, sigma_b``, in the units of ``r, g, b``, every value finite and > 0. The
+:class:`~data_formats.samples.SampleSet` then carries ``sigma`` ``(N, 3)``, and a fit weights
+each residual by it.
 
 No other columns are accepted (a misspelt column must not be ignored silently). Every row must be
 usable: a NaN/inf, a negative colour value, a direction below the horizon (θ > 90°, ``z < 0``) or
@@ -49,7 +58,13 @@ from .samples import SampleSet
 ANGLE_COLUMNS = ("theta_i", "phi_i", "theta_o", "phi_o")
 VECTOR_COLUMNS = ("wix", "wiy", "wiz", "wox", "woy", "woz")
 RGB_COLUMNS = ("r", "g", "b")
-LAYOUTS = {"angles": ANGLE_COLUMNS + RGB_COLUMNS, "vectors": VECTOR_COLUMNS + RGB_COLUMNS}
+MONO_COLUMNS = ("value",)
+LAYOUTS = {
+    "angles": ANGLE_COLUMNS + RGB_COLUMNS, "vectors": VECTOR_COLUMNS + RGB_COLUMNS,
+    "angles, monochrome": ANGLE_COLUMNS + MONO_COLUMNS,
+    "vectors, monochrome": VECTOR_COLUMNS + MONO_COLUMNS,
+}
+SIGMA_COLUMNS = (("sigma",), ("sigma_r", "sigma_g", "sigma_b"))
 SUFFIXES = (".csv", ".npz")
 UNIT_TOLERANCE = 1e-3
 
@@ -62,16 +77,32 @@ def _layout_text() -> str:
     return " or ".join(",".join(cols) for cols in LAYOUTS.values())
 
 
+def _sigma_columns(path, names: set) -> tuple[str, ...]:
+    """The uncertainty columns among ``names`` (one of :data:`SIGMA_COLUMNS`, or none)."""
+    given = [c for group in SIGMA_COLUMNS for c in group if c in names]
+    for group in SIGMA_COLUMNS:
+        if set(given) == set(group):
+            return group
+    if given:
+        raise SampleListFormatError(
+            f"{path}: uncertainty columns {', '.join(given)}; give either sigma (all channels) "
+            f"or all three of sigma_r, sigma_g, sigma_b"
+        )
+    return ()
+
+
 def _pick_layout(path, columns) -> str:
-    """The layout whose column set equals ``columns``; otherwise a precise error."""
+    """The layout whose column set equals ``columns`` (less any uncertainty columns);
+    otherwise a precise error."""
     names = set(columns)
     if len(names) != len(columns):
         dup = sorted({c for c in columns if columns.count(c) > 1})
         raise SampleListFormatError(f"{path}: duplicate column(s) {', '.join(dup)} in the header")
+    names -= set(_sigma_columns(path, names))
     for layout, cols in LAYOUTS.items():
         if names == set(cols):
             return layout
-    unknown = sorted(names - set(ANGLE_COLUMNS + VECTOR_COLUMNS + RGB_COLUMNS))
+    unknown = sorted(names - set(ANGLE_COLUMNS + VECTOR_COLUMNS + RGB_COLUMNS + MONO_COLUMNS))
     best = min(LAYOUTS.values(), key=lambda cols: len(set(cols) ^ names))
     missing = [c for c in best if c not in names]
     detail = []
@@ -228,16 +259,37 @@ def _to_sample_set(path: Path, columns, data, rows) -> SampleSet:
         raise SampleListFormatError(f"{path}: no samples (the file has a header but no rows)")
     _check_finite(path, columns, data, rows)
     cols = {name: data[:, c] for c, name in enumerate(columns)}
-    rgb = np.stack([cols[c] for c in RGB_COLUMNS], axis=-1)
+    mono = "value" in cols
+    colour = MONO_COLUMNS * 3 if mono else RGB_COLUMNS
+    rgb = np.stack([cols[c] for c in colour], axis=-1)
     if (rgb < 0).any():
         i, c = np.argwhere(rgb < 0)[0]
         raise SampleListFormatError(
-            f"{_where(path, rows, i)}, column {RGB_COLUMNS[c]!r}: {rgb[i, c]:g} is negative; "
+            f"{_where(path, rows, i)}, column {colour[c]!r}: {rgb[i, c]:g} is negative; "
             f"a BRDF is ≥ 0 (clip noise to 0 or drop the row)"
         )
     wi, wo = _directions(path, cols, rows, "i"), _directions(path, cols, rows, "o")
     valid = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    return SampleSet(wi=wi, wo=wo, rgb=rgb, valid=valid, name=path.stem, path=str(path))
+    sigma = _sigma(path, cols, rows)
+    return SampleSet(wi=wi, wo=wo, rgb=rgb, valid=valid, name=path.stem, path=str(path),
+                     sigma=sigma, channels=1 if mono else 3)
+
+
+def _sigma(path, cols: dict, rows) -> np.ndarray | None:
+    """``(N, 3)`` standard deviations from the ``sigma`` or ``sigma_r/g/b`` columns, checked
+    positive; ``None`` without them."""
+    group = _sigma_columns(path, set(cols))
+    if not group:
+        return None
+    sigma = np.stack([cols[c] for c in (group * 3 if len(group) == 1 else group)], axis=-1)
+    bad = ~(sigma > 0)
+    if bad.any():
+        i, c = np.argwhere(bad)[0]
+        raise SampleListFormatError(
+            f"{_where(path, rows, i)}, column {group[min(c, len(group) - 1)]!r}: "
+            f"{sigma[i, c]:g} is not a positive standard deviation; give sigma > 0"
+        )
+    return sigma
 
 
 def _check_path(path) -> Path:
@@ -275,15 +327,24 @@ def read_samples(path) -> SampleSet:
 def _columns_of(samples: SampleSet, angles: bool) -> tuple[tuple[str, ...], np.ndarray]:
     keep = np.asarray(samples.valid, bool)
     wi, wo, rgb = (np.asarray(a, float)[keep] for a in (samples.wi, samples.wo, samples.rgb))
+    extra_names, extra = (), np.empty((len(rgb), 0))
+    mono = getattr(samples, "channels", 3) == 1
+    if samples.sigma is not None:
+        extra_names, extra = SIGMA_COLUMNS[1], np.asarray(samples.sigma, float)[keep]
+        if mono:
+            extra_names, extra = SIGMA_COLUMNS[0], extra[:, :1]
+    if mono:
+        rgb = rgb[:, :1]
+    layout = ", monochrome" if mono else ""
     if not angles:
-        return LAYOUTS["vectors"], np.concatenate([wi, wo, rgb], axis=1)
+        return LAYOUTS["vectors" + layout] + extra_names, np.concatenate([wi, wo, rgb, extra], 1)
 
     def theta_phi(w):
         theta = np.degrees(np.arctan2(np.hypot(w[:, 0], w[:, 1]), w[:, 2]))
         return theta, np.degrees(np.arctan2(w[:, 1], w[:, 0])) % 360.0
 
     (ti, pi), (to, po) = theta_phi(wi), theta_phi(wo)
-    return LAYOUTS["angles"], np.column_stack([ti, pi, to, po, rgb])
+    return LAYOUTS["angles" + layout] + extra_names, np.column_stack([ti, pi, to, po, rgb, extra])
 
 
 def write_samples(path, samples: SampleSet, *, angles: bool = True) -> Path:

@@ -22,6 +22,12 @@ class SampleSet:
         valid: ``(N,)`` bool; ``False`` marks a missing or unusable measurement.
         name: a short label (the file stem), used in titles and summaries.
         path: the source file, if any.
+        sigma: ``None``, or the measurement's standard deviation per sample and channel
+            ``(N, 3)``, in the units of ``rgb`` (1/sr), > 0 where ``valid``. The fitter then
+            weights each residual by it (:func:`brdffit.fitting.data.select`).
+        channels: 3 for RGB; 1 for a monochrome measurement, stored in all three columns of
+            ``rgb`` (so every consumer sees RGB); a fit uses channel 0 only and fits a grey
+            model (:func:`brdffit.api.fit`).
     """
 
     wi: np.ndarray
@@ -30,13 +36,19 @@ class SampleSet:
     valid: np.ndarray
     name: str = ""
     path: str | None = None
+    sigma: np.ndarray | None = None
+    channels: int = 3
 
     def __post_init__(self):
+        if self.channels not in (1, 3):
+            raise ValueError(f"SampleSet.channels must be 1 or 3, got {self.channels!r}")
         n = len(self.rgb)
         for field in ("wi", "wo", "rgb"):
             arr = getattr(self, field)
             if arr.shape != (n, 3):
                 raise ValueError(f"SampleSet.{field} must have shape ({n}, 3), got {arr.shape}")
+        if self.sigma is not None and np.shape(self.sigma) != (n, 3):
+            raise ValueError(f"SampleSet.sigma must have shape ({n}, 3), got {np.shape(self.sigma)}")
         if self.valid.shape != (n,):
             raise ValueError(f"SampleSet.valid must have shape ({n},), got {self.valid.shape}")
 

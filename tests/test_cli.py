@@ -217,7 +217,9 @@ def test_info_of_a_sample_list(capsys, tmp_path):
     assert figures["samples"] == 2 and figures["r_max"] == 5 and figures["peak_rgb"] == [5, 4, 3]
     assert figures["peak_theta_i_deg"] == pytest.approx(10)
     assert main(["info", str(tmp_path / "s.csv")]) == 0
-    assert "valid_fraction    1" in capsys.readouterr().out
+    text = capsys.readouterr().out  # laid out as `info` of a MERL table
+    assert text.startswith("sample list 's' (") and "  valid        2 (100.0%)" in text
+    assert "  channel      min          median       max\n  R            0.1 " in text
 
 
 def test_demo_recovers_the_known_material(capsys, tmp_path):

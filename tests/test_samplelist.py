@@ -125,3 +125,25 @@ def test_path_errors(tmp_path):
     (tmp_path / "d.csv").mkdir()
     with pytest.raises(SampleListFormatError, match="is a directory"):
         read_samples(tmp_path / "d.csv")
+
+
+def test_sigma_and_monochrome_columns_round_trip(tmp_path):
+    from data_formats.samplelist import read_samples, write_samples
+    from data_formats.samples import SampleSet
+
+    w = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
+    sigma = np.array([[0.1, 0.2, 0.3], [0.4, 0.5, 0.6]])
+    rgb = SampleSet(w, w, np.array([[1.0, 2, 3], [4, 5, 6]]), np.ones(2, bool), sigma=sigma)
+    back = read_samples(write_samples(tmp_path / "rgb.npz", rgb))
+    np.testing.assert_array_equal(back.sigma, sigma)
+    mono = SampleSet(w, w, np.array([[1.0, 1, 1], [2, 2, 2]]), np.ones(2, bool), channels=1,
+                     sigma=np.full((2, 3), 0.1))
+    path = write_samples(tmp_path / "mono.csv", mono)
+    assert path.read_text().splitlines()[0] == "theta_i,phi_i,theta_o,phi_o,value,sigma"
+    back = read_samples(path)
+    assert back.channels == 1 and np.all(back.rgb == [[1, 1, 1], [2, 2, 2]])
+    np.testing.assert_array_equal(back.sigma, 0.1)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("theta_i,phi_i,theta_o,phi_o,value,sigma\n10,0,10,180,1,0\n")
+    with pytest.raises(SampleListFormatError, match="line 2, column 'sigma': 0 is not a positive"):
+        read_samples(bad)

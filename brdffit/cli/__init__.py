@@ -4,7 +4,8 @@ One module per command (``add_parser`` + ``run``); this module builds the parser
 mistakes into one line on stderr. Exit codes: 0 success; 1 a fit that did not converge (its
 results are still written, marked as such); 2 bad input or usage. ``--debug`` shows tracebacks.
 
-The commands set float64 (``jax_enable_x64``) before any JAX work; the library itself never does.
+The commands set float64 (``jax_enable_x64``) and the per-user persistent compilation cache
+(:mod:`brdffit.compilation_cache`) before any JAX work; the library itself never does.
 JAX and the fitter are imported only inside the commands that need them.
 """
 
@@ -59,9 +60,13 @@ def _user_errors() -> tuple[type[BaseException], ...]:
 
 
 def _enable_x64() -> None:
+    """float64, and the persistent compilation cache (:mod:`brdffit.compilation_cache`)."""
     import jax
 
+    from .. import compilation_cache
+
     jax.config.update("jax_enable_x64", True)
+    compilation_cache.enable()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -14,7 +14,7 @@ from data_formats._atomic import atomic_path
 
 from ..errors import BrdffitError
 
-INPUT_SUFFIXES = {".binary": "MERL table", ".csv": "sample list", ".npz": "sample list"}
+from ..io import INPUT_SUFFIXES, read_path  # noqa: F401 (INPUT_SUFFIXES: used by synth)
 
 
 class UsageError(BrdffitError):
@@ -62,23 +62,9 @@ def check_params(model, values: dict, flag: str) -> dict:
 
 # -- inputs -----------------------------------------------------------------------------------
 def read_input(path: str):
-    """A MERL table (``.binary``) or a sample list (``.csv``, ``.npz``), by suffix."""
-    p = Path(path)
-    kind = INPUT_SUFFIXES.get(p.suffix.lower())
-    if kind is None:
-        raise UsageError(
-            f"{path}: unknown input format {p.suffix or '(no suffix)'!r}; expected .binary "
-            f"(MERL table) or .csv / .npz (sample list, see data_formats.samplelist)"
-        )
-    if not p.exists():
-        raise UsageError(f"{path}: no such file")
-    if kind == "MERL table":
-        from data_formats.merl import read_merl
-
-        return read_merl(p)
-    from data_formats.samplelist import read_samples
-
-    return read_samples(p)
+    """A MERL table (``.binary``) or a sample list (``.csv``, ``.npz``), by suffix
+    (:func:`brdffit.io.read_path`, the reader dispatch ``brdffit.fit`` uses for a path)."""
+    return read_path(path)
 
 
 def is_table(data) -> bool:

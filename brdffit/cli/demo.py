@@ -26,7 +26,7 @@ def add_parser(sub, parents) -> None:
         parents=parents,
         allow_abbrev=False,
         help="synthesize a known material, fit it, compare, write figures (no download)",
-        description="Synthesize a MERL table from known ggx parameters (1%% noise) in a "
+        description="Synthesize a MERL table from known ggx parameters (1% noise) in a "
         "temporary folder, fit it, print recovered against true values, and write the result "
         "(result.json) and the figures (demo-*.png) into OUTDIR.",
     )
@@ -47,7 +47,7 @@ def comparison(result, truth: dict) -> str:
         got = np.atleast_1d(np.asarray(result.params[name], float))
         err = np.atleast_1d(np.asarray(errors.get(name, np.full_like(got, np.nan)), float))
         for k in range(len(true)):
-            label = name if len(true) == 1 else f"{name}[{'rgb'[k]}]"
+            label = name if len(true) == 1 else f"{name}[{k}]"  # the names of summary() and --fix
             sigma = abs(got[k] - true[k]) / err[k] if err[k] > 0 else float("nan")
             rows.append((label, f"{true[k]:.5f}", f"{got[k]:.5f}", f"{err[k]:.1e}", f"{sigma:.1f}"))
     widths = [max(len(r[i]) for r in rows) for i in range(5)]
@@ -56,7 +56,7 @@ def comparison(result, truth: dict) -> str:
 
 def run(args) -> int:
     from .. import get_model
-    from ..fitting import fit
+    from ..api import fit
     from .plotting import figure_paths, write_figures
     from .synth import synthesize_table
 

@@ -12,9 +12,12 @@ runs (an existing file needs ``--force``), so no work is wasted and nothing part
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 
+from ..errors import BrdffitError
+from ._words import cli_words
 from ._common import (
     Progress,
     UsageError,
@@ -53,7 +56,6 @@ def add_parser(sub, parents) -> None:
     p.add_argument("--config", "-c", metavar="PRESET",
                    help="a TOML preset: a path, or a bare name looked up as configs/NAME.toml")
     p.add_argument("--loss", help="residual weighting: linear, cosine, log, relative (+huber)")
-    p.add_argument("--solver", help="lm (Levenberg-Marquardt), gauss-newton or dogleg")
     p.add_argument("--cutoff", type=float, metavar="DEG",
                    help="drop samples with θi or θo above DEG degrees")
     p.add_argument("--fix", action="append", metavar="NAME=VALUE",
@@ -64,9 +66,13 @@ def add_parser(sub, parents) -> None:
                    help="fit on N randomly chosen valid samples (or a fraction like 0.1)")
     p.add_argument("--seed", type=int, help="seed for subsampling and multi-start")
     p.add_argument("--multistart", type=int, metavar="K", help="K extra random starts, best kept")
+    p.add_argument("--bound", action="append", metavar="NAME=LO,HI",
+                   help="narrow a parameter's bounds (alpha=0.01,0.5); repeatable")
+    _add_solver_arguments(p)
     p.add_argument("--out", "-o", metavar="RESULT.json", help="write the result as JSON")
     p.add_argument("--plot", metavar="FIG.png",
-                   help="write the diagnostic figures (FIG.png and FIG-<view>.png)")
+                   help="write the diagnostic figures FIG-slice.png, FIG-peaks.png, "
+                   "FIG-albedo.png, FIG-spheres.png (and FIG-corner.png with --mcmc)")
     p.add_argument("--table", metavar="FITTED.binary",
                    help="write the fitted model rendered over the MERL grid")
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
@@ -77,6 +83,43 @@ def add_parser(sub, parents) -> None:
     p.set_defaults(run=run)
 
 
+def _add_solver_arguments(p) -> None:
+    """The solver's options (those of ``brdffit.fit``), each overriding the preset."""
+    g = p.add_argument_group("solver (defaults in brdffit.fit; a preset's [solver] table)")
+    g.add_argument("--solver", help="lm (Levenberg-Marquardt, default), gauss-newton or dogleg")
+    g.add_argument("--max-steps", type=int, metavar="N",
+                   help="solver steps per start before giving up (default 200)")
+    g.add_argument("--rtol", type=float, metavar="X",
+                   help="relative tolerance (default 1e-8 in float64, 1e-5 in float32)")
+    g.add_argument("--atol", type=float, metavar="X",
+                   help="absolute tolerance (default 1e-8 in float64, 1e-5 in float32)")
+    g.add_argument("--ftol", type=float, metavar="X",
+                   help="the optimality test: converged when the best bounded Gauss-Newton step "
+                   "would lower the cost by less than X times the cost (default 1e-9 in "
+                   "float64, 1e-6 in float32)")
+    g.add_argument("--precision", choices=("float64", "float32"),
+                   help="model evaluation dtype (default float64)")
+    g.add_argument("--covariance", choices=("sandwich", "gn"),
+                   help="standard errors: sandwich (robust, default) or gn (classical)")
+
+
+def _parse_bounds(items) -> dict:
+    """``["alpha=0.01,0.5"]`` → ``{"alpha": (0.01, 0.5)}``."""
+    out = {}
+    for item in items or ():
+        name, sep, value = item.partition("=")
+        parts = value.split(",")
+        try:
+            lo, hi = (float(v) for v in parts)
+        except ValueError:
+            lo = hi = None
+        if not sep or not name.strip() or lo is None or not lo < hi:
+            raise UsageError(f"--bound {item!r}: expected NAME=LOWER,UPPER with LOWER < UPPER, "
+                             f"e.g. --bound alpha=0.01,0.5")
+        out[name.strip()] = (lo, hi)
+    return out
+
+
 def options_from(args):
     """Preset (if any) merged with the flags, checked against the model's parameters."""
     from .. import get_model
@@ -85,7 +128,10 @@ def options_from(args):
     flags = FitOptions(
         model=args.model, loss=args.loss, solver=args.solver, cutoff=args.cutoff,
         subsample=args.subsample, seed=args.seed, multistart=args.multistart,
+        rtol=args.rtol, atol=args.atol, ftol=args.ftol, max_steps=args.max_steps,
+        precision=args.precision, covariance=args.covariance,
         init=parse_assignments(args.init, "--init"), fixed=parse_assignments(args.fix, "--fix"),
+        bounds=_parse_bounds(args.bound),
         sources=("command line",),
     )
     preset = load_config(args.config) if args.config else FitOptions()
@@ -119,7 +165,7 @@ def _check_names(options) -> None:
 
 
 def run(args) -> int:
-    from ..fitting import fit
+    from ..api import fit
 
     models, options = options_from(args)
     if len(models) > 1:
@@ -133,11 +179,17 @@ def run(args) -> int:
     data = read_input(args.file)
     progress = Progress(quiet=args.quiet)
     progress(f"fitting {model.name} to {args.file}")
-    result = fit(data, model, **options.fit_kwargs(), throw=False,
-                 progress=progress if progress.enabled else None)
-    post = _posterior(data, result, args, options, progress, mcmc)
+    try:
+        result = fit(data, model, **options.fit_kwargs(), throw=False,
+                     progress=progress if progress.enabled else None)
+        result = dataclasses.replace(result, message=cli_words(result.message), provenance={
+            **result.provenance, "command": "brdffit fit", "config": list(options.sources)})
+        post = _posterior(data, result, args, options, progress, mcmc)
+    except BrdffitError as exc:  # the library's advice, in flags
+        raise UsageError(cli_words(str(exc))) from exc
     text = mcmc.combined_json(result, post) if post else result.to_json()
-    print(text if args.json else "\n".join([result.summary()] + ([post.summary()] if post else [])))
+    lines = [result.summary()] + ([cli_words(post.summary())] if post else [])
+    print(text if args.json else "\n".join(lines))
     if out:
         write_text(out, text + "\n")
     if table:
@@ -215,7 +267,7 @@ def _posterior(data, result, args, options, progress, mcmc):
     progress("sampling the posterior with emcee")
     post, _files, notes = mcmc.run_mcmc(data, result, args, options, atomic_write)
     for note in notes:
-        print(f"brdffit fit: warning: {note}", file=sys.stderr)
+        print(f"brdffit fit: warning: {cli_words(note)}", file=sys.stderr)
     return post
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -28,7 +29,9 @@ def sample_info(samples) -> dict:
     valid = np.asarray(samples.valid, bool)
     rgb = np.asarray(samples.rgb, float)[valid]
     out = {"format": "sample list", "path": samples.path, "samples": len(samples),
-           "valid": int(valid.sum()), "valid_fraction": float(valid.mean()) if len(valid) else 0.0}
+           "valid": int(valid.sum()), "valid_fraction": float(valid.mean()) if len(valid) else 0.0,
+           "channels": int(getattr(samples, "channels", 3)),
+           "sigma": getattr(samples, "sigma", None) is not None}
     if rgb.size:
         for c, name in enumerate("rgb"):
             out[f"{name}_min"], out[f"{name}_median"], out[f"{name}_max"] = (
@@ -64,8 +67,31 @@ def _fmt(value) -> str:
 
 
 def format_info(figures: dict) -> str:
-    width = max((len(str(k)) for k in figures), default=0)
-    return "\n".join(f"{str(k):<{width}}  {_fmt(v)}" for k, v in figures.items())
+    """A sample list's figures as aligned text, laid out as a MERL table's
+    (:meth:`data_formats.merl.MERLTable.info_text`): header, counts, a channel table, the peak."""
+    f = figures
+    channels = "1 (monochrome: the value in R, G and B)" if f.get("channels") == 1 else "3 (RGB)"
+    sigma = "sigma given per sample" if f.get("sigma") else "none (no sigma columns)"
+    name = Path(f["path"]).stem if f.get("path") else ""
+    lines = [
+        f"sample list {name!r}" + (f" ({f['path']})" if f.get("path") else ""),
+        f"  samples      {f['samples']:,} direction pairs",
+        f"  valid        {f['valid']:,} ({f['valid_fraction']:.1%})",
+        f"  channels     {channels}",
+        f"  uncertainty  {sigma}",
+        "  channel      min          median       max",
+    ]
+    for ch in "rgb":
+        if f"{ch}_min" in f:
+            low, mid, high = (f[f"{ch}_{k}"] for k in ("min", "median", "max"))
+            lines.append(f"  {ch.upper()}            {low:<12.5g} {mid:<12.5g} {high:<12.5g}")
+    if "peak_rgb" in f:
+        lines.append(f"  peak         {_fmt(f['peak_rgb'])} (largest r+g+b) at "
+                     f"theta_i={f['peak_theta_i_deg']:.3f} deg, "
+                     f"theta_o={f['peak_theta_o_deg']:.3f} deg")
+    else:
+        lines.append("  peak         - (no valid samples)")
+    return "\n".join(line.rstrip() for line in lines)
 
 
 def figures_of(data) -> dict:

@@ -6,7 +6,10 @@ Selection happens in two stages, so that every table of one layout compiles once
   cells with both directions above the horizon, within the angle ``cutoff``, and, if asked, a
   seeded ``subsample`` of a fixed size. This sets the array shapes.
 * **dynamic** (weights): the validity mask, non-finite values and negative values become zero
-  weights and zero targets. Masked cells cost compute but never change the shapes.
+  weights and zero targets. Masked cells cost compute but never change the shapes. A sample
+  list with measurement uncertainties (``SampleSet.sigma``) weights each residual by
+  ``1/σ`` carried through the loss's transform (:func:`sigma_weight`); a monochrome one
+  (``SampleSet.channels == 1``) gives channels 1 and 2 zero weight.
 
 Burley 2012 §3.1/§4.7: data past about 75–80° is extrapolated in the MERL set; ``cutoff=80``
 drops it. The default keeps everything (the caller decides).
@@ -148,10 +151,38 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
     good &= np.all(np.isfinite(rgb) & (rgb >= 0), axis=1)
     rgb[~good] = 0.0
     sw = loss.weight(rgb, wi[:, 2:3], wo[:, 2:3]) * good[:, None]
+    if getattr(samples, "sigma", None) is not None:
+        sigma = _gather(np.asarray(samples.sigma, float), rows, n, 1.0, "float64")
+        sw = good[:, None] * sigma_weight(loss, rgb, sigma, wi[:, 2:3], wo[:, 2:3])
+    if getattr(samples, "channels", 3) == 1:  # monochrome: one measurement, in channel 0
+        sw[:, 1:] = 0.0
     arrays = [jnp.asarray(a) for a in (wi, wo, rgb, sw)]  # explicit transfers are the fast path
     data = _device(*arrays, loss=loss, chunks=chunks, dtype=dtype)
     host = (wi[:k], wo[:k], rgb[:k], good[:k])
     return Selection(data, rows, len(samples.wi), n_usable, int(np.count_nonzero(good)), chunks, host)
+
+
+def sigma_weight(loss: Loss, rho, sigma, cos_i, cos_o) -> np.ndarray:
+    r"""Residual weights ``1/σ_g`` for measurements ``ρ ± σ`` (NumPy, ``(n, 3)``).
+
+    ``σ_g`` is ``σ`` carried through the loss's transform ``g`` by its secant slope over
+    ``[max(ρ-σ, 0), ρ+σ]`` (first-order error propagation, kept finite where ``ρ < σ``):
+
+    .. math::
+
+        \sigma_g = \sigma\,\frac{g(\rho+\sigma) - g(\max(\rho-\sigma, 0))}
+                                    {\rho+\sigma - \max(\rho-\sigma, 0)} .
+
+    The residual ``(g(ρ̂) - g(ρ)) / σ_g`` is then in units of the measurement's standard
+    deviation (so ``½Σr²`` is half of χ² near the optimum): the loss's own weight is replaced,
+    its transform kept. Cells where ``σ_g`` is not positive get weight zero.
+    """
+    lo, hi = np.maximum(rho - sigma, 0.0), rho + sigma
+    slope = (np.asarray(loss.transform(hi, cos_i, cos_o)) -
+             np.asarray(loss.transform(lo, cos_i, cos_o))) / (hi - lo)
+    sigma_g = sigma * slope
+    ok = np.isfinite(sigma_g) & (sigma_g > 0)
+    return np.where(ok, 1.0 / np.where(ok, sigma_g, 1.0), 0.0)
 
 
 @functools.partial(jax.jit, static_argnames=("loss", "chunks", "dtype"))

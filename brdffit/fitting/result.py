@@ -61,6 +61,34 @@ def _from_json_safe(v):
     return v
 
 
+def _short(v) -> str:
+    if isinstance(v, (list, tuple)):
+        return "(" + ", ".join(f"{float(a):.4g}" for a in v) + ")"
+    return f"{float(v):.4g}"
+
+
+def _esc(text) -> str:
+    import html
+
+    return html.escape(str(text))
+
+
+def value_with_error(value: float, err: float) -> str:
+    """``value ± err`` with the error to two significant digits and the value to the same
+    decimal place (``0.08012 ± 0.00011``); ``value`` alone (6 significant digits) when the
+    error is not a positive finite number."""
+    if not (math.isfinite(err) and err > 0):
+        return f"{value:.6g}"
+    place = math.floor(math.log10(err)) - 1  # the error's second significant digit
+    if place >= 0:
+        return f"{round(value, -place):.0f} ± {round(err, -place):.0f}"
+    return f"{value:.{-place}f} ± {err:.{-place}f}"
+
+
+def _value_html(value, err) -> str:
+    return _esc(value_with_error(value, err))
+
+
 @dataclasses.dataclass
 class FitResult:
     """Outcome of :func:`brdffit.fit`.
@@ -87,6 +115,11 @@ class FitResult:
         optimality: ``ω`` at the end point, the fraction of the cost that the bounded
             Gauss–Newton step could still remove (:func:`brdffit.fitting.solvers.optimality`);
             ``success`` means ``ω ≤ ftol``.
+        provenance: what produced the result (empty for the low-level
+            :func:`brdffit.fitting.fit`; :func:`brdffit.fit` fills it): ``input`` (``path``,
+            ``sha256``, ``name``), ``options`` (every fit option, defaults resolved),
+            ``versions`` (brdffit, jax, jaxlib, optimistix, numpy, python) and ``date`` (UTC,
+            ISO 8601). Written to JSON and read back by :meth:`from_json`.
     """
 
     model_name: str
@@ -115,6 +148,7 @@ class FitResult:
     table: str = ""
     covariance: str = "sandwich"
     optimality: float = float("nan")
+    provenance: dict = dataclasses.field(default_factory=dict)
 
     # -- evaluation -----------------------------------------------------------------------------
     @property
@@ -152,6 +186,8 @@ class FitResult:
             tag = " (fixed)" if n in self.fixed else ""
             if n in self.at_bound:
                 tag = f" (at {self.at_bound[n]} bound)"
+            if n in (self.provenance.get("tied") or {}):
+                tag = f" (= {self.provenance['tied'][n]}, grey fit of monochrome data)"
             err = f" ± {flat_se[n]:.3g}" if n in self.free and n not in self.at_bound else ""
             lines.append(f"  {n:>18} = {flat_x[n]:.6g}{err}{tag}")
         lines.append("  " + ", ".join(f"{k} {v:.4g}" for k, v in self.metrics.items()))
@@ -161,6 +197,68 @@ class FitResult:
 
     def __str__(self) -> str:
         return self.summary()
+
+    def __repr__(self) -> str:
+        """One line: model, input, verdict, the parameters (RGB as triples), cost."""
+        params = ", ".join(f"{k}={_short(v)}" for k, v in self.params.items())
+        verdict = "converged" if self.success else f"FAILED ({self.status})"
+        return (f"FitResult({self.model_name!r} on {self.table or 'table'!r}: {verdict}, "
+                f"{params}, cost={self.cost:.4g})")
+
+    def rows(self) -> list[dict]:
+        """One dict per flat scalar (``f0[0]`` ...): ``name``, ``value``, ``stderr`` (NaN for
+        fixed scalars and those at a bound), ``lower``/``upper`` (the bounds the fit used),
+        ``status`` (``free``, ``fixed``, ``at lower bound``, ``at upper bound``, or
+        ``= f0[0] (grey)`` for the copied components of a grey fit),
+        ``at_bound``."""
+        model = get_model(self.model_name)
+        lo, hi = model.flat_bounds()
+        user = self.provenance.get("options", {}).get("bounds") or {}
+        for name, (a, b) in user.items():
+            idx = [i for i, n in enumerate(self.names) if n == name or n.startswith(name + "[")]
+            lo[idx], hi[idx] = a, b
+        se = np.sqrt(np.clip(np.diag(np.asarray(self.cov, float)), 0, None))
+        tied = self.provenance.get("tied") or {}
+        out = []
+        for i, n in enumerate(self.names):
+            fixed, bound = n in self.fixed, self.at_bound.get(n)
+            status = "fixed" if fixed else (f"at {bound} bound" if bound else "free")
+            if n in tied:  # a grey fit of monochrome data: a copy of component 0
+                status = f"= {tied[n]} (grey)"
+            out.append({
+                "name": n, "value": float(np.asarray(self.x, float)[i]),
+                "stderr": float("nan") if fixed or bound else float(se[i]),
+                "lower": float(lo[i]), "upper": float(hi[i]), "status": status,
+                "at_bound": bool(bound),
+            })
+        return out
+
+    def to_dataframe(self):
+        """A ``pandas.DataFrame`` with one row per flat scalar parameter (columns of
+        :meth:`rows`, indexed by ``name``). ``pd.DataFrame(result.params)`` would repeat a
+        scalar across the three rows of an RGB parameter; this does not."""
+        import pandas as pd
+
+        return pd.DataFrame(self.rows()).set_index("name")
+
+    def _repr_html_(self) -> str:
+        """Jupyter's view: verdict line, a parameter table (value ± standard error, bounds,
+        status), the metrics, cost, steps and time."""
+        verdict = "converged" if self.success else f"<b>FAILED</b> ({_esc(self.status)})"
+        head = (f"<b>{_esc(self.model_name)}</b> fit of <code>{_esc(self.table or 'table')}</code>"
+                f" ({_esc(self.loss)} loss, {_esc(self.solver)}): {verdict} in {self.steps} steps, "
+                f"{self.wall_time:.2f} s, {self.n_cells} cells")
+        body = "".join(
+            f"<tr><td>{_esc(r['name'])}</td><td>{_value_html(r['value'], r['stderr'])}</td>"
+            f"<td>[{r['lower']:g}, {r['upper']:g}]</td><td>{_esc(r['status'])}</td></tr>"
+            for r in self.rows()
+        )
+        table = ("<table><thead><tr><th>parameter</th><th>value ± stderr</th><th>bounds</th>"
+                 f"<th>status</th></tr></thead><tbody>{body}</tbody></table>")
+        metrics = ", ".join(f"{_esc(k)} {v:.4g}" for k, v in self.metrics.items())
+        msg = f"<p>message: {_esc(self.message)}</p>" if self.message else ""
+        return (f"<div class='brdffit-fit'><p>{head}</p>{msg}{table}<p>{metrics}; "
+                f"cost {self.cost:.6g}</p></div>")
 
     def to_dict(self) -> dict:
         """Plain Python types only (lists for arrays)."""
@@ -179,6 +277,8 @@ class FitResult:
     @classmethod
     def from_dict(cls, d: dict) -> FitResult:
         d = dict(d)
+        d.setdefault("provenance", {})
+        d.pop("posterior", None)  # `brdffit fit --mcmc --out` nests the posterior's figures
         d["stderr"] = {k: _from_json_safe(v) for k, v in d["stderr"].items()}
         d["x"] = np.asarray(d["x"], float)
         d["cov"] = np.asarray(_from_json_safe(d["cov"]), float).reshape(len(d["x"]), len(d["x"]))

@@ -23,7 +23,7 @@ def _slots(model, key: str) -> tuple[str, list[int]]:
     try:
         model.param(base)
     except UnknownNameError:
-        raise UnknownNameError(f"parameter of model {model.name!r}", key, model.names) from None
+        raise UnknownNameError("parameter", key, model.names, owner=f"model {model.name!r}") from None
     if m:
         if key not in names:
             raise ConfigError(f"{key!r}: parameter {base!r} has no component {m.group('i')}")

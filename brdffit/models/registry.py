@@ -118,7 +118,7 @@ class Model:
         for p in self.params:
             if p.name == name:
                 return p
-        raise UnknownNameError(f"parameter of model {self.name!r}", name, self.names)
+        raise UnknownNameError("parameter", name, self.names, owner=f"model {self.name!r}")
 
     def defaults(self) -> dict[str, np.ndarray]:
         return {p.name: p.default_array() for p in self.params}

@@ -11,9 +11,12 @@ interesting features of the MERL materials are visible in this one slice.
   are averaged on a coarse (warped θh, θd) grid, and the fit is evaluated at the same samples and
   binned the same way, so both panels see identical coverage. Empty bins count as missing.
 
-Display: both images share one exposure (the median measured value maps to 0.25, i.e. mid-grey
-after gamma 2.2: the diffuse body is readable and the specular and Fresnel peaks clip, as in
-Burley's Fig. 1); the ratio panel is ``log10((fit + ε)/(measured + ε))`` (ε of :mod:`.error`),
+Display: both images share one logarithmic tone mapping of the luminance
+(:func:`._style.log_tonemap`: the measured median at 0.4, the measured 99.9th percentile at
+white, hue kept), so the diffuse body, the Fresnel peak and the whole specular peak are all
+readable; Burley's Fig. 1 uses an exposure and gamma instead, which saturates the peak (every
+cell with θh below about 8° is white on a shiny MERL material). The ratio panel is
+``log10((fit + ε)/(measured + ε))`` (ε of :mod:`.error`),
 the Rec. 709-weighted mean over the channels, on a diverging colormap with symmetric limits.
 Missing cells are drawn in :data:`._style.MISSING_RGB`.
 """
@@ -82,8 +85,8 @@ def slice_data(data, model=None, params=None, *, phi_d_deg: float = 90.0, phi_to
     return _binned_slice(data, model, params, phi_d_deg, phi_tol_deg, bins)
 
 
-def _show_rgb(ax, rgb, valid, exposure, title):
-    img = _style.gamma_tonemap(rgb, exposure)
+def _show_rgb(ax, rgb, valid, levels, title):
+    img = _style.log_tonemap(rgb, *levels)
     img[~valid] = _style.MISSING_RGB
     ax.imshow(np.transpose(img, (1, 0, 2)), origin="lower", extent=(0, 1, 0, 90),
               aspect="auto", interpolation="nearest")
@@ -122,14 +125,14 @@ def plot_slice(data, model=None, params=None, *, error: str | None = None,
         phi_d_deg: the φd of the slice. title: replaces the generated title.
     """
     meas, valid, fit = slice_data(data, model, params, phi_d_deg=phi_d_deg)
-    exposure = _style.robust_exposure(meas[valid], 50.0, target=0.25)
+    levels = _style.log_levels(meas[valid])
     kind = "" if is_table(data) else f" (samples binned, |φd−{phi_d_deg:g}°|<10°)"
     panels = 1 if fit is None else 3
     fig = _style.new_figure(4.6 * panels + (0.8 if fit is not None else 0.0), 4.6)
     axes = np.atleast_1d(fig.subplots(1, panels))
-    _show_rgb(axes[0], meas, valid, exposure, f"measured{kind}, exposure ×{exposure:.3g}, γ 2.2")
+    _show_rgb(axes[0], meas, valid, levels, f"measured{kind}\n{_style.tonemap_label(*levels)}")
     if fit is not None:
-        _show_rgb(axes[1], fit, valid, exposure, "fitted (same exposure)")
+        _show_rgb(axes[1], fit, valid, levels, "fitted\n(same tone mapping)")
         _show_ratio(fig, axes[2], meas, fit, valid)
     if not valid.all():
         axes[0].legend(handles=[Patch(color=_style.MISSING_RGB, label="no measurement")],

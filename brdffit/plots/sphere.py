@@ -11,9 +11,10 @@ radiance is
 so a Lambertian surface of albedo ρ gives ``ρ/π · max(0, n·l)``. Pixels where the light or the
 viewer is below the local horizon, the background and lookups without data are black (the
 measured panel's dark silhouette, like Burley 2012 Fig. 4's black region); a thin grey circle
-marks the sphere's outline. Display: one exposure
-for both panels (the 99.5th percentile of the measured lit pixels maps to 0.85), then the sRGB
-transfer curve.
+marks the sphere's outline. Display: one logarithmic tone mapping of the luminance for both
+panels (:func:`._style.log_tonemap`; the median of the measured lit pixels at 0.4, their
+99.9th percentile at white), so a shiny material's diffuse body is visible beside its
+highlight (an exposure set by the highlight left a gold paint black apart from it).
 """
 
 from __future__ import annotations
@@ -81,12 +82,14 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
     if model is not None:
         fitted = render_sphere(lambda wi, wo: evaluate_model(model, params, wi, wo), size,
                                light_dir)
-        images.append(("fitted (same exposure)", fitted))
-    exposure = _style.robust_exposure(meas, 99.5, target=0.85)
+        images.append(("fitted (same tone mapping)", fitted))
+    inside, _, wi, wo = sphere_directions(size, light_dir)
+    lit = inside & (wi[..., 2] > 0) & (wo[..., 2] > 0)
+    levels = _style.log_levels(meas[lit])
     fig = _style.new_figure(4.1 * len(images), 4.6)
     axes = np.atleast_1d(fig.subplots(1, len(images)))
     for ax, (label, img) in zip(axes, images):
-        ax.imshow(_style.srgb_tonemap(img, exposure), interpolation="antialiased",
+        ax.imshow(_style.log_tonemap(img, *levels), interpolation="antialiased",
                   extent=(-1, 1, -1, 1))
         ax.add_patch(Circle((0, 0), 1.0, fill=False, lw=0.6, ec=(0.35, 0.35, 0.35)))
         ax.set_title(label, fontsize=10)
@@ -95,7 +98,7 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
     elev = np.degrees(np.arccos(np.clip(light[2], -1, 1)))
     fig.supxlabel(f"directional light {elev:.0f}° off the view axis,\n"
                   f"towards ({light[0]:+.2f}, {light[1]:+.2f}) in the image; "
-                  f"exposure ×{exposure:.3g}, sRGB",
+                  f"{_style.tonemap_label(*levels)}",
                   fontsize=8)
     name = getattr(model, "name", model) if model is not None else None
     fig.suptitle(title or _style.figure_title(data_name(data), name, error, "Lit sphere"))

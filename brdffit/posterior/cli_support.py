@@ -38,8 +38,10 @@ def add_arguments(parser) -> None:
                    help=f"steps per walker (default {DEFAULT_STEPS})")
     g.add_argument("--burn", type=int, metavar="N",
                    help=f"burn-in steps dropped (default {DEFAULT_BURN}, or steps/5 if smaller)")
-    g.add_argument("--noise", choices=("fixed", "sampled"),
-                   help="noise scale: fixed at the least-squares estimate (default) or sampled")
+    g.add_argument("--noise", choices=("fixed", "sampled", "measured"),
+                   help="noise scale: fixed at the least-squares estimate, sampled, or measured "
+                   "(the sample list's sigma columns); default measured when the input has "
+                   "sigma columns, else fixed")
     g.add_argument("--mcmc-subsample", type=int, metavar="N",
                    help="cells the likelihood uses (default 2000, stratified in θh)")
     g.add_argument("--chain", metavar="CHAIN.npz", help="where to write the chain (NPZ)")

@@ -18,7 +18,12 @@ density (quadratic core, linear tails) — a robust likelihood, on purpose.
 ``σ`` is either **fixed** at the least-squares estimate ``s² = Σr²/(m − p)`` (the same ``s²``
 as the fit's covariance, :mod:`brdffit.fitting.statistics`, but evaluated on the cells the
 posterior uses), given as a number, or **sampled** as one more parameter ``sigma`` with a
-log-uniform (Jeffreys) prior on ``[s/100, 100 s]``.
+log-uniform (Jeffreys) prior on ``[s/100, 100 s]``, or, for data with measurement
+uncertainties (a sample list with ``sigma`` columns), **measured**: ``σ = 1``. The fit's weights
+are then ``1/σ_kc`` carried through ``g`` (:func:`brdffit.fitting.data.sigma_weight`), so
+``r_kc`` is already in units of each sample's own standard deviation and the likelihood above
+is the Gaussian measurement likelihood ``Π N(ρ_kc; ρ̂_kc, σ_kc²)`` to first order in ``σ``.
+"measured" is the default when the data carry ``sigma``.
 
 Warning: the model assumes homoscedastic, independent residuals under the chosen loss. Measured
 tables violate this (model error is smooth and correlated across cells), so on real data the
@@ -40,7 +45,7 @@ from .priors import LogUniform, PriorBox
 
 #: The sampled noise scale's prior spans this factor either side of the least-squares ``s``.
 SIGMA_PRIOR_SPAN = 100.0
-NOISE_MODES = ("fixed", "sampled")
+NOISE_MODES = ("fixed", "sampled", "measured")
 
 
 class LogPosterior(eqx.Module):
@@ -106,9 +111,12 @@ def least_squares_sigma(problem: Problem, x_free, data: FitData) -> float:
 
 
 def noise_setup(noise, s_hat: float):
-    """``(sigma, sample_sigma, extra_prior)`` for ``noise`` = ``"fixed"``, ``"sampled"`` or a
-    positive number; ``extra_prior`` is ``[("sigma", LogUniform)]`` when sampled."""
+    """``(sigma, sample_sigma, extra_prior)`` for ``noise`` = ``"fixed"``, ``"sampled"``,
+    ``"measured"`` (``σ = 1``: residuals already divided by each sample's ``σ``) or a positive
+    number; ``extra_prior`` is ``[("sigma", LogUniform)]`` when sampled."""
     if isinstance(noise, str):
+        if noise == "measured":
+            return 1.0, False, []
         if noise not in NOISE_MODES:
             raise ConfigError(
                 f"noise must be one of {', '.join(NOISE_MODES)} or a positive number, got "

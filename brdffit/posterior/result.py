@@ -21,6 +21,18 @@ from .diagnostics import Diagnostics
 PERCENTILES = (16.0, 50.0, 84.0)
 
 
+def _median_interval(row) -> str:
+    """``p50 −a +b`` with digits that follow the smaller half-width (two significant digits)."""
+    import math
+
+    lo, mid, hi = row["p50"] - row["p16"], row["p50"], row["p84"] - row["p50"]
+    err = min(lo, hi)
+    if not (math.isfinite(err) and err > 0):
+        return f"{mid:.6g}"
+    dec = max(0, 1 - math.floor(math.log10(err)))
+    return f"{mid:.{dec}f} −{lo:.{dec}f} +{hi:.{dec}f}"
+
+
 @dataclasses.dataclass
 class PosteriorResult:
     """Outcome of :func:`~brdffit.posterior.sample_posterior`.
@@ -98,6 +110,62 @@ class PosteriorResult:
 
     def __str__(self) -> str:
         return self.summary()
+
+    def __repr__(self) -> str:
+        """One line: model, input, walkers × steps, the medians, acceptance, worst τ."""
+        d = self.diagnostics
+        med = ", ".join(f"{n}={self.percentiles[n][1]:.4g}" for n in self.sampled)
+        tau = max(d.tau.values()) if d.tau else float("nan")
+        return (f"PosteriorResult({self.model_name!r} on {self.table or 'table'!r}: "
+                f"{self.settings['nwalkers']}x{self.settings['nsteps']}, {med}, "
+                f"acceptance={d.acceptance:.2f}, max tau={tau:.1f})")
+
+    def rows(self) -> list[dict]:
+        """One dict per sampled scalar: ``name``, ``p16``, ``p50``, ``p84``, ``std``, ``tau``,
+        ``ess``, and the least-squares ``ls_value`` and ``ls_stderr`` (NaN for ``sigma``)."""
+        d = self.diagnostics
+        x_ls = dict(zip(self.names, np.asarray(self.x_ls, float)))
+        return [{
+            "name": n, "p16": p[0], "p50": p[1], "p84": p[2], "std": self.std[n],
+            "tau": float(d.tau[n]), "ess": float(d.ess[n]),
+            "ls_value": float(x_ls.get(n, float("nan"))),
+            "ls_stderr": float(self.stderr_ls.get(n, float("nan"))),
+        } for n, p in ((n, self.percentiles[n]) for n in self.sampled)]
+
+    def to_dataframe(self):
+        """A ``pandas.DataFrame``, one row per sampled scalar (columns of :meth:`rows`, indexed
+        by ``name``)."""
+        import pandas as pd
+
+        return pd.DataFrame(self.rows()).set_index("name")
+
+    def _repr_html_(self) -> str:
+        """Jupyter's view: the run, a table of percentiles beside the least-squares values,
+        τ and effective sample sizes, the acceptance and any warnings."""
+        import html
+
+        from ..fitting.result import value_with_error
+
+        s, d = self.settings, self.diagnostics
+        esc = html.escape
+        head = (f"<b>{esc(self.model_name)}</b> posterior of <code>{esc(self.table or 'table')}"
+                f"</code> ({esc(str(s['loss']))} loss, noise {esc(self.noise['mode'])} "
+                f"σ={self.noise['sigma']:.4g}): {s['nwalkers']} walkers × {s['nsteps']} steps "
+                f"(burn {s['burn']}), {s['n_cells']} cells, {self.wall_time:.1f} s")
+        body = "".join(
+            f"<tr><td>{esc(r['name'])}</td><td>{esc(_median_interval(r))}</td>"
+            f"<td>{esc(value_with_error(r['ls_value'], r['ls_stderr']))}</td>"
+            f"<td>{r['tau']:.1f}</td><td>{r['ess']:.0f}</td></tr>"
+            for r in self.rows()
+        )
+        table = ("<table><thead><tr><th>parameter</th><th>median (16–84 %)</th>"
+                 "<th>least squares</th><th>τ</th><th>ess</th></tr></thead>"
+                 f"<tbody>{body}</tbody></table>")
+        verdict = "chain too short (&lt; 50 τ)" if d.too_short else "chain ≥ 50 τ"
+        warn = "".join(f"<p>warning: {esc(m)}</p>" for m in d.messages)
+        return (f"<div class='brdffit-posterior'><p>{head}</p>{table}<p>acceptance "
+                f"{d.acceptance:.3f} (walkers {d.acceptance_min:.2f}–{d.acceptance_max:.2f}); "
+                f"{verdict}</p>{warn}</div>")
 
     def to_dict(self) -> dict:
         """Everything but the chain arrays (see :meth:`save_chain`), as plain Python values."""

@@ -135,12 +135,15 @@ def _posterior(result, samples, *, loss, cutoff, subsample, seed, bounds, noise,
     inside = np.clip(x_ls, blo[: len(free)], bhi[: len(free)])
     post = LogPosterior(problem, sel.data, box, jnp.asarray(sigma, dtype),
                         float(m), jnp.asarray(inside, dtype), sample_sigma)
-    mode = "sampled" if sample_sigma else ("fixed" if isinstance(noise, str) else "given")
+    mode = "sampled" if sample_sigma else (noise if isinstance(noise, str) else "given")
     return post, sel, center, scale, {"mode": mode, "sigma": float(sigma), "sigma_ls": s_hat}
 
 
-def _run_emcee(post, center, scale, nwalkers, nsteps, seed, moves):
-    """Run the sampler; returns it and the seconds spent compiling and sampling."""
+def _run_emcee(post, center, scale, nwalkers, nsteps, seed, moves, progress=None):
+    """Run the sampler; returns it and the seconds spent compiling and sampling.
+
+    ``progress(event, info)`` (if given) gets ``sample-step`` with ``step`` and ``of`` after
+    each ensemble step."""
     rng = np.random.default_rng(seed)
     lo, hi = np.asarray(post.prior.lo, float), np.asarray(post.prior.hi, float)
     p0 = _start_ball(np.clip(center, lo, hi), scale, lo, hi, nwalkers, rng)
@@ -157,7 +160,10 @@ def _run_emcee(post, center, scale, nwalkers, nsteps, seed, moves):
     sampler = emcee.EnsembleSampler(nwalkers, len(center), log_prob, vectorize=True,
                                     moves=moves)
     rstate = np.random.RandomState(int(rng.integers(2**32 - 1))).get_state()
-    sampler.run_mcmc(emcee.State(p0, log_prob=lp0, random_state=rstate), nsteps, progress=False)
+    state = emcee.State(p0, log_prob=lp0, random_state=rstate)
+    for k, _ in enumerate(sampler.sample(state, iterations=nsteps, progress=False), start=1):
+        if progress is not None:
+            progress("sample-step", {"step": k, "of": nsteps})
     return sampler, t1 - t0, time.perf_counter() - t1
 
 
@@ -203,22 +209,28 @@ def _assemble(result, post, sel, sampler, noise, run, timings):
 
 def sample_posterior(
     table, result_or_model, *, nwalkers: int = DEFAULT_WALKERS, nsteps: int = DEFAULT_STEPS,
-    burn: int = DEFAULT_BURN, thin: int = 1, seed: int = 0, noise="fixed",
+    burn: int = DEFAULT_BURN, thin: int = 1, seed: int = 0, noise=None,
     subsample=DEFAULT_SUBSAMPLE, prior=None, loss=None, cutoff=None, bounds=None,
-    fixed=None, init=None, chain_path=None, moves=None,
+    fixed=None, init=None, chain_path=None, moves=None, progress=None,
 ) -> PosteriorResult:
     """Sample the posterior of a model's free parameters on ``table`` with emcee.
 
+    Runs inside ``jax.enable_x64(True)`` (float64 for the call; ``jax.config`` is left as it
+    was), as :func:`brdffit.fit` does.
+
     Args:
-        table: a ``MERLTable`` or ``SampleSet`` (anything with ``.to_samples()``).
+        table: a path (``str`` or ``PathLike``: ``.binary``, ``.csv``, ``.npz``, read by
+            :func:`brdffit.io.read_path`), or a ``MERLTable`` / ``SampleSet`` (anything with
+            ``.to_samples()``).
         result_or_model: a :class:`~brdffit.fitting.FitResult` (its optimum, free/fixed split and
             loss are used), or a model name / :class:`Model` (fitted here first, on the same
             cells as the posterior, with ``loss``, ``cutoff``, ``bounds``, ``fixed``, ``init``).
         nwalkers, nsteps, burn, thin: the ensemble and the chain (``burn`` steps dropped,
             every ``thin``-th kept for the percentiles; diagnostics use the unthinned chain).
         seed: seeds the start ball, emcee's generator and the subsample; same seed, same chain.
-        noise: ``"fixed"`` (least-squares ``s``), ``"sampled"`` or a number (see
-            :mod:`.likelihood`).
+        noise: ``"fixed"`` (least-squares ``s``), ``"sampled"``, ``"measured"`` (the data's
+            own ``sigma`` columns) or a number (see :mod:`.likelihood`). Default: ``"measured"``
+            when the data carry ``sigma``, else ``"fixed"``.
         subsample: cells the likelihood uses: a count, a fraction, a ``Subsample`` or ``None``
             (all). Default: 2000 cells stratified in ``θh``.
         prior: name → ``(lo, hi)`` / ``Uniform`` / ``LogUniform`` / ``Normal`` (see
@@ -227,8 +239,35 @@ def sample_posterior(
         fixed, init: passed to the fit when a model is given (fixed scalars stay fixed).
         chain_path: also save the chain there as NPZ (:meth:`PosteriorResult.save_chain`).
         moves: emcee moves; default :func:`default_moves` (differential evolution).
+        progress: ``True`` for a ``tqdm.auto`` bar over the steps, or a callable
+            ``progress(event, info)`` (``sample-step`` with ``step``, ``of``); see
+            :mod:`brdffit.progress`.
     """
+    from ..api import load
+    from ..progress import resolve
+
+    table, _path = load(table)
+    callback, bar = resolve(progress, desc="posterior")
+    try:
+        with jax.enable_x64(True):
+            return _sample(table, result_or_model, nwalkers, nsteps, burn, thin, seed, noise,
+                           subsample, prior, loss, cutoff, bounds, fixed, init, chain_path,
+                           moves, callback)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _sample(table, result_or_model, nwalkers, nsteps, burn, thin, seed, noise, subsample,
+            prior, loss, cutoff, bounds, fixed, init, chain_path, moves, progress):
     samples = table.to_samples()
+    if noise is None:
+        noise = "measured" if getattr(samples, "sigma", None) is not None else "fixed"
+    if noise == "measured" and getattr(samples, "sigma", None) is None:
+        raise ConfigError(
+            "noise='measured' needs measurement uncertainties: a sample list with a sigma "
+            "column (or sigma_r, sigma_g, sigma_b); use noise='fixed' or 'sampled' otherwise"
+        )
     fit_kwargs = {"cutoff": cutoff, "subsample": subsample, "seed": seed, "bounds": bounds,
                   "fixed": fixed, "init": init}
     result, t_fit = _least_squares(table, result_or_model, loss, fit_kwargs)
@@ -238,7 +277,8 @@ def sample_posterior(
     )
     _check_run(nwalkers, nsteps, burn, thin, len(center))
     sampler, t_compile, t_sample = _run_emcee(post, center, scale, int(nwalkers), int(nsteps), seed,
-                                              default_moves() if moves is None else moves)
+                                              default_moves() if moves is None else moves,
+                                              progress)
     run = {"nwalkers": int(nwalkers), "nsteps": int(nsteps), "burn": int(burn), "thin": int(thin),
            "seed": int(seed), "loss": loss, "cutoff": cutoff, "subsample": repr(subsample)}
     out = _assemble(result, post, sel, sampler, noise_info,

@@ -1,0 +1,169 @@
+"""``brdffit.fit``: the notebook-facing fit, around :func:`brdffit.fitting.solve.fit`.
+
+What it adds to the low-level fit (whose arguments it passes on unchanged):
+
+* **a path**: ``table`` may be a ``str`` or ``os.PathLike``, read by suffix through
+  :func:`brdffit.io.read_path` (the dispatch the command line uses);
+* **float64 for the call**: the fit runs inside ``jax.enable_x64(True)``, so a session that
+  never set ``jax_enable_x64`` gets the same converged float64 fit as one that did, and the
+  global ``jax.config`` is left as it was (the library never changes it);
+* **progress**: ``progress=True`` is a ``tqdm.auto`` bar (:mod:`brdffit.progress`), a callable
+  still gets the fitter's events;
+* **monochrome data**: a sample list with one value column fits a grey model
+  (:mod:`brdffit.grey`);
+* **provenance**: the result's ``provenance`` records the input (path, SHA-256), every option
+  with its defaults resolved, the versions of brdffit, JAX and optimistix, and the date.
+"""
+
+from __future__ import annotations
+
+import datetime
+import inspect
+import os
+import platform
+from pathlib import Path
+
+from .io import is_path, read_path, sha256
+
+
+def _fit_defaults() -> dict:
+    from .fitting import solve
+
+    sig = inspect.signature(solve.fit)
+    return {k: p.default for k, p in sig.parameters.items()
+            if p.kind is p.KEYWORD_ONLY and k not in ("throw", "progress")}
+
+
+def _jsonable(value):
+    """Options as plain JSON values: names for objects, dicts of lists for parameter maps."""
+    import numpy as np
+
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, (np.integer, np.floating)):
+        return value.item()
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_jsonable(v) for v in np.asarray(value, dtype=object).tolist()]
+    if hasattr(value, "params") and hasattr(value, "model_name"):  # init=FitResult
+        return {"from_fit": value.model_name, **_jsonable(value.params)}
+    if hasattr(value, "label"):  # a Loss
+        return value.label
+    if hasattr(value, "size") and hasattr(value, "method"):  # a Subsample
+        return {"size": value.size, "method": value.method}
+    return getattr(value, "name", None) or type(value).__name__
+
+
+def versions() -> dict:
+    """Versions of brdffit and of what computed the fit."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from . import __version__
+
+    out = {"brdffit": __version__, "python": platform.python_version()}
+    for dist in ("jax", "jaxlib", "optimistix", "equinox", "numpy"):
+        try:
+            out[dist] = version(dist)
+        except PackageNotFoundError:
+            out[dist] = None
+    return out
+
+
+def _input_record(table, path) -> dict:
+    source = path if path is not None else getattr(table, "path", None)
+    record = {"name": getattr(table, "name", "") or "", "path": None, "sha256": None}
+    if source is not None and Path(source).is_file():
+        record["path"] = str(Path(source).resolve())
+        record["sha256"] = sha256(source)
+    return record
+
+
+def resolved_options(model, options: dict) -> dict:
+    """Every option of the fit: the given ones over the code's defaults, with the solver
+    tolerances' dtype-dependent defaults and the default precision filled in (float64: the
+    call runs with x64 enabled)."""
+    from .fitting.solve import _tolerances
+    from .models.registry import get_model
+
+    merged = {**_fit_defaults(), **options}
+    precision = merged.get("precision") or "float64"
+    merged["precision"] = precision
+    merged["rtol"], merged["atol"], merged["ftol"] = _tolerances(
+        merged.get("rtol"), merged.get("atol"), merged.get("ftol"), precision)
+    merged["model"] = get_model(model).name
+    return _jsonable(merged)
+
+
+def provenance(table, path, model, options: dict) -> dict:
+    """The ``provenance`` record of a result (see :class:`brdffit.fitting.FitResult`)."""
+    return {
+        "input": _input_record(table, path),
+        "options": resolved_options(model, options),
+        "versions": versions(),
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+    }
+
+
+def load(table):
+    """``(data, path)``: a path is read by :func:`brdffit.io.read_path`; anything else is
+    returned as is (it must have ``.to_samples()``), with ``path=None``."""
+    if is_path(table):
+        return read_path(table), Path(os.fspath(table))
+    if not hasattr(table, "to_samples"):
+        raise TypeError(
+            f"table must be a path (str or PathLike: .binary, .csv, .npz) or an object with "
+            f".to_samples() (MERLTable, SampleSet); got {type(table).__name__}"
+        )
+    return table, None
+
+
+def fit(table, model, *, progress=None, throw: bool = True, **options):
+    """Fit ``model`` to ``table``: :func:`brdffit.fitting.solve.fit` with a path accepted,
+    float64 enabled for the call, ``progress=True`` as a progress bar, and the provenance
+    recorded in the result.
+
+    Args:
+        table: a path (``str`` or ``PathLike``; ``.binary`` MERL table, ``.csv``/``.npz`` sample
+            list) or anything with ``.to_samples()``.
+        model: a registry name or a :class:`~brdffit.models.Model`. Monochrome data (a
+            sample list with one ``value`` column) fit its grey variant (:mod:`brdffit.grey`).
+        progress: ``True`` (a ``tqdm.auto`` bar), ``None``/``False``, or a callable
+            ``progress(event, info)`` (events in :func:`brdffit.fitting.solve.fit`).
+        throw: raise :class:`~brdffit.errors.FitError` when the fit does not converge.
+        **options: every other keyword of :func:`brdffit.fitting.solve.fit` (``loss``,
+            ``solver``, ``init``, ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``,
+            ``multistart``, ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
+            ``covariance``).
+    """
+    import dataclasses
+
+    import jax
+
+    from .fitting import solve
+    from .grey import is_monochrome, tie_options, untie
+    from .models.registry import get_model
+    from .progress import resolve
+
+    unknown = sorted(set(options) - set(_fit_defaults()))
+    if unknown:
+        raise TypeError(
+            f"brdffit.fit() got unknown option(s) {', '.join(unknown)}; valid options: "
+            f"{', '.join(sorted(_fit_defaults()))}, progress, throw"
+        )
+    data, path = load(table)
+    solve_options, tied = options, {}
+    if is_monochrome(data):
+        solve_options, tied = tie_options(get_model(model), options)
+    callback, bar = resolve(progress)
+    try:
+        with jax.enable_x64(True):
+            result = solve.fit(data, model, progress=callback, throw=throw, **solve_options)
+    finally:
+        if bar is not None:
+            bar.close()
+    record = provenance(data, path, model, options)
+    if tied:
+        result = untie(result, get_model(model), tied)
+        record.update(channels=1, tied=tied)
+    return dataclasses.replace(result, provenance=record)
