@@ -211,7 +211,7 @@ def _run_several(args, models, options) -> int:
     summaries; ``--out`` gets ``{"results": [...]}`` in the same order."""
     import json
 
-    from ..fitting import fit
+    from ..api import fit
 
     if args.plot or args.table or args.mcmc:
         raise UsageError("--plot, --table and --mcmc take one model; fit the chosen model "
@@ -222,8 +222,12 @@ def _run_several(args, models, options) -> int:
     results = []
     for model in models:
         progress(f"fitting {model.name} to {args.file}")
-        results.append(fit(data, model, **options.fit_kwargs(), throw=False,
-                           progress=progress if progress.enabled else None))
+        try:
+            result = fit(data, model, **options.fit_kwargs(), throw=False,
+                         progress=progress if progress.enabled else None)
+        except BrdffitError as exc:  # the library's advice, in flags
+            raise UsageError(cli_words(str(exc))) from exc
+        results.append(dataclasses.replace(result, message=cli_words(result.message)))
     results.sort(key=lambda r: (not r.success, r.cost))
     text = json.dumps({"results": [json.loads(r.to_json()) for r in results]}, indent=2)
     if args.json:
