@@ -18,7 +18,13 @@ __all__ = ["NotRegularFileError", "open_regular", "describe_mode"]
 
 
 class NotRegularFileError(OSError):
-    """The path exists but is not a regular file (a FIFO, a device, a socket, a directory)."""
+    """The path exists but is not a regular file (a FIFO, a device, a socket, a directory).
+
+    ``filename`` is the path, ``what`` says what it is (``"a FIFO (named pipe)"``).
+    """
+
+    def __str__(self) -> str:
+        return self.args[0]
 
 
 def describe_mode(mode: int) -> str:

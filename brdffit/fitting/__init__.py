@@ -4,10 +4,13 @@ Public surface: :func:`fit`, :class:`FitResult`, the loss registry (:data:`LOSSE
 :func:`get_loss`, :class:`Loss`), the solver registry (:data:`SOLVERS`), :class:`Subsample`.
 """
 
+import functools
+
+from ..config import check_fit_options
 from .data import Subsample
 from .losses import DEFAULT_LOSS, LOSSES, Loss, get_loss
 from .result import FitResult, FittedModel
-from .solve import fit
+from .solve import fit as _fit_unchecked
 from .solvers import DEFAULT_SOLVER, SOLVERS
 
 __all__ = [
@@ -22,3 +25,11 @@ __all__ = [
     "fit",
     "get_loss",
 ]
+
+
+@functools.wraps(_fit_unchecked)
+def fit(table, model, **options):
+    # Numeric options are range-checked before any work (brdffit.config.check_fit_options);
+    # the check belongs at the top of solve.fit, and moves there once solve.py is rewritten.
+    check_fit_options(options)
+    return _fit_unchecked(table, model, **options)
