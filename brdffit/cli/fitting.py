@@ -2,32 +2,37 @@
 
 Options come from three layers, later ones winning: the code's defaults, a preset
 (``--config``, see :mod:`brdffit.config`), then the flags. Every output is checked before the fit
-runs (an existing file needs ``--force``), so no work is wasted and nothing partial is left.
+runs (an existing file needs ``--force``), so no work is wasted; the outputs are written into a
+staging folder and published together after the summary is printed, so either the whole set
+appears or none does (:mod:`brdffit.cli._outputs`).
 """
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
 from ._common import (
     Progress,
     UsageError,
-    atomic_write,
     check_outputs,
     check_params,
     parse_assignments,
     read_input,
+    check_no_conflict,
     write_text,
 )
 
 
 def _count_or_fraction(text: str):
+    """``200000`` or ``1e5`` → a count (int), ``0.1`` → a fraction; ranges: check_fit_options."""
     try:
         value = float(text)
     except ValueError:
         raise UsageError(f"--subsample {text!r}: give a count (200000) or a fraction (0.1)") from None
-    return value if "." in text or "e" in text.lower() and value < 1 else int(value)
+    whole = math.isfinite(value) and value == int(value) and value >= 1
+    return int(value) if whole and ("." not in text or value > 1) else value
 
 
 def add_parser(sub, parents) -> None:
@@ -74,8 +79,10 @@ def add_parser(sub, parents) -> None:
 def options_from(args):
     """Preset (if any) merged with the flags, checked against the model's parameters."""
     from .. import get_model
-    from ..config import FitOptions, load_config
+    from ..config import FitOptions, check_fit_options, load_config
 
+    check_fit_options({"cutoff": args.cutoff, "subsample": args.subsample, "seed": args.seed,
+                       "multistart": args.multistart}, lambda key: f"--{key}")
     flags = FitOptions(
         model=args.model, loss=args.loss, solver=args.solver, cutoff=args.cutoff,
         subsample=args.subsample, seed=args.seed, multistart=args.multistart,
@@ -88,8 +95,7 @@ def options_from(args):
         raise UsageError("no model given: pass --model NAME (see `brdffit models`) or a preset "
                          "that names one")
     model = get_model(options.model)
-    if options.cutoff is not None and not 0 < options.cutoff <= 90:
-        raise UsageError(f"--cutoff {options.cutoff:g}: give degrees in (0, 90]")
+    check_no_conflict(flags.init, flags.fixed)
     check_params(model, flags.init, "--init")
     check_params(model, flags.fixed, "--fix")
     options.check_params(model)
@@ -116,24 +122,28 @@ def run(args) -> int:
     from ..posterior import cli_support as mcmc
 
     mcmc_paths = [p for p in mcmc.output_paths(args).values() if p]
-    check_outputs([out, table] + _plot_paths(plot) + mcmc_paths, args.force)
-    data = read_input(args.file)
-    progress = Progress(quiet=args.quiet)
-    progress(f"fitting {model.name} to {args.file}")
-    result = fit(data, model, **options.fit_kwargs(), throw=False,
-                 progress=progress if progress.enabled else None)
-    post = _posterior(data, result, args, options, progress, mcmc)
-    text = mcmc.combined_json(result, post) if post else result.to_json()
-    print(text if args.json else "\n".join([result.summary()] + ([post.summary()] if post else [])))
-    if out:
-        write_text(out, text + "\n")
-    if table:
-        _write_table(result, table, progress)
-    if plot:
-        from .plotting import write_figures
+    with check_outputs([out, table] + _plot_paths(plot) + mcmc_paths, args.force,
+                       sizes={table: _MERL_BYTES} if table else None) as outputs:
+        data = read_input(args.file)
+        progress = Progress(quiet=args.quiet)
+        progress(f"fitting {model.name} to {args.file}")
+        result = fit(data, model, **options.fit_kwargs(), throw=False,
+                     progress=progress if progress.enabled else None)
+        post = _posterior(data, result, args, options, progress, mcmc, outputs)
+        text = mcmc.combined_json(result, post) if post else result.to_json()
+        if out:
+            outputs.write(out, lambda tmp: write_text(tmp, text + "\n"))
+        if table:
+            _write_table(result, outputs, table, progress)
+        if plot:
+            from .plotting import write_figures
 
-        write_figures(data, plot, model=model, params=result.params,
-                      converged=result.success, progress=progress)
+            outputs.write(plot, lambda base: write_figures(
+                data, base, model=model, params=result.params, converged=result.success,
+                progress=progress), base=True)
+        print(text if args.json else "\n".join([result.summary()] + ([post.summary()] if post else [])))
+        sys.stdout.flush()  # a failed stdout publishes nothing
+        outputs.publish()
     if not result.success:
         print(f"brdffit fit: warning: the fit did not converge ({result.message}); outputs "
               f"were written and marked success=false", file=sys.stderr)
@@ -141,7 +151,7 @@ def run(args) -> int:
     return 0
 
 
-def _posterior(data, result, args, options, progress, mcmc):
+def _posterior(data, result, args, options, progress, mcmc, outputs):
     """``--mcmc``: emcee around the converged fit (see :mod:`brdffit.posterior.cli_support`)."""
     if not args.mcmc:
         return None
@@ -150,7 +160,7 @@ def _posterior(data, result, args, options, progress, mcmc):
               "so there is no optimum to start the walkers from", file=sys.stderr)
         return None
     progress("sampling the posterior with emcee")
-    post, _files, notes = mcmc.run_mcmc(data, result, args, options, atomic_write)
+    post, _files, notes = mcmc.run_mcmc(data, result, args, options, outputs.write)
     for note in notes:
         print(f"brdffit fit: warning: {note}", file=sys.stderr)
     return post
@@ -164,8 +174,12 @@ def _plot_paths(plot):
     return figure_paths(plot)
 
 
-def _write_table(result, path, progress) -> None:
+def _write_table(result, outputs, path, progress) -> None:
     from data_formats.merl import write_merl
 
     progress(f"rendering the fitted model into {path}")
-    write_merl(path, result.render_merl(name=Path(path).stem))  # atomic itself
+    rendered = result.render_merl(name=Path(path).stem)
+    outputs.write(path, lambda tmp: write_merl(tmp, rendered))
+
+
+_MERL_BYTES = 34_992_012  # a table rendered over the MERL grid
