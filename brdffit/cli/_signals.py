@@ -95,7 +95,8 @@ class SignalExit:
                 except Exception:  # noqa: BLE001 - best effort on the way out
                     pass
             try:
-                os.write(2, f"brdffit {self.command}: {_NAMES[signum]}\n".encode())
+                prog = f"brdffit {self.command}" if self.command else "brdffit"
+                os.write(2, f"{prog}: {_NAMES[signum]}\n".encode())
             except OSError:
                 pass
             os._exit(128 + signum)

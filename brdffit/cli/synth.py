@@ -78,16 +78,20 @@ def synthesize_table(model, params, *, noise=0.0, seed=0, name=""):
                       name=name)
 
 
-def synthesize_samples(model, params, n, *, noise=0.0, seed=0, name=""):
-    from data_formats import SampleSet
-
-    from ..models.evaluate import evaluate_model
-
+def _check_samples(n) -> None:
     from data_formats.samplelist import MAX_SAMPLES
 
     if not 0 < n <= MAX_SAMPLES:
         raise UsageError(f"--samples {n}: give a number of direction pairs in [1, {MAX_SAMPLES}] "
                          f"(the sample-list readers' limit)")
+
+
+def synthesize_samples(model, params, n, *, noise=0.0, seed=0, name=""):
+    from data_formats import SampleSet
+
+    from ..models.evaluate import evaluate_model
+
+    _check_samples(n)
     rng = np.random.default_rng(seed)
     wi, wo = random_pairs(rng, n)
     rgb = _noisy(evaluate_model(model, params, wi, wo), noise, rng)
@@ -104,6 +108,8 @@ def run(args) -> int:
     params = check_params(model, parse_assignments(args.param, "--param"), "--param")
     check_fit_options({"seed": args.seed}, lambda key: f"--{key}")
     _check_noise(args.noise)
+    if Path(args.output).suffix.lower() != ".binary":
+        _check_samples(args.samples)
     out = Path(args.output)
     suffix = out.suffix.lower()
     if suffix not in INPUT_SUFFIXES:
