@@ -191,7 +191,10 @@ def test_fifos_and_devices_are_refused_before_opening(tmp_path, suffix, reader, 
 def test_cli_refuses_a_fifo_input_in_one_line(tmp_path):
     os.mkfifo(tmp_path / "f.csv")
     p = _cli("info", "f.csv", cwd=tmp_path)
-    _out, err = p.communicate(timeout=60)
+    try:
+        _out, err = p.communicate(timeout=60)
+    finally:
+        p.kill()
     assert p.returncode == 2
     _one_line_error(err, "f.csv: is a FIFO")
 
