@@ -72,7 +72,7 @@ def mutate(rng, data: bytes) -> bytes:
 def merl_file(rng, path: Path) -> None:
     kind = rng.integers(6)
     if kind == 5:  # a sparse file with a legal, huge header
-        dims = rng.integers(1, 10_001, 3)
+        dims = np.array([rng.integers(1, 10_001), rng.integers(1, 10_001), rng.integers(1, 50)])
         with open(path, "wb") as fh:
             fh.write(dims.astype("<i4").tobytes())
             fh.truncate(12 + 24 * int(np.prod(dims.astype(object))))

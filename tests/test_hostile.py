@@ -292,8 +292,20 @@ def test_zip_bomb_and_sparse_merl_under_a_memory_cap(tmp_path):
 
 
 def test_huge_vectors_give_no_numpy_warnings(tmp_path, capsys):
-    (tmp_path / "v.csv").write_text("wix,wiy,wiz,wox,woy,woz,r,g,b\n1e308,1e308,1e308,0,0,1,1,1,1\n")
-    _fails(capsys, ["info", str(tmp_path / "v.csv")], "length inf is not 1")
+    """A 1e308 direction: one error naming its length, no overflow RuntimeWarnings (before:
+    three warning lines on stderr)."""
+    import warnings
+
+    path = tmp_path / "v.csv"
+    path.write_text("wix,wiy,wiz,wox,woy,woz,r,g,b\n1e308,1e308,1e308,0,0,1,1,1,1\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a warning would replace the format error
+        with pytest.raises(SampleListFormatError, match="length inf is not 1"):
+            read_samples(path)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _fails(capsys, ["info", str(path)], "length inf is not 1")
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)]
 
 
 # -- outputs ----------------------------------------------------------------------------------
