@@ -77,6 +77,17 @@ FIT_OPTION_RANGES = {
     "atol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
     "edm_tol": (False, 0.0, 1.0, True, "a number in [0, 1]"),
 }
+#: Ranges of the posterior-sampling options (``brdffit fit --mcmc``), checked the same way.
+#: The chain holds ``walkers * steps * parameters`` doubles: 10^4 x 10^5 x 10 would be 80 GB,
+#: so the product is bounded too (:data:`MAX_CHAIN_VALUES`).
+POSTERIOR_OPTION_RANGES = {
+    "walkers": (True, 2, 10_000, True, "an even integer in [2, 10000]"),
+    "steps": (True, 1, 1_000_000, True, "an integer in [1, 1000000]"),
+    "burn": (True, 0, 1_000_000, True, "an integer in [0, 1000000]"),
+    "mcmc_subsample": (True, 1, 2**24, True, "an integer in [1, 16777216]"),
+}
+MAX_CHAIN_VALUES = 10**8
+
 #: The narrowest ``[bounds]`` interval, relative to ``max(1, |bound|)``; narrower ones cannot
 #: be fitted in float64 (the Jacobian degenerates): fix the parameter instead.
 MIN_BOUNDS_WIDTH = 1e-6
@@ -107,25 +118,27 @@ def _subsample_error(value) -> str | None:
     return f"a sample count in [1, {MAX_SUBSAMPLE}] or a fraction in (0, 1]"
 
 
-def check_fit_options(options: Mapping, label=None) -> Mapping:
+def check_fit_options(options: Mapping, label=None, ranges=None) -> Mapping:
     """Refuse, before any work, numeric options of :func:`brdffit.fit` outside their ranges.
 
     ``options`` maps option names (``rtol``, ``multistart``, ...) to values; ``None`` and names
     without a range are ignored. The ranges are :data:`FIT_OPTION_RANGES` plus ``subsample``
-    (a count in ``[1, 2^24]`` or a fraction in ``(0, 1]``): every value must be finite and of
+    (a count in ``[1, 2^24]`` or a fraction in ``(0, 1]``), or ``ranges`` (e.g.
+    :data:`POSTERIOR_OPTION_RANGES`) in their place: every value must be finite and of
     the right kind (an integer where a count is meant; ``bool`` is not a number). ``label(key)``
     says how the message names an option (``"--multistart"`` on the command line). Raises
     :class:`~brdffit.errors.ConfigError` ("'multistart' must be an integer in [0, 1000], got
     100000000"); returns ``options`` unchanged.
     """
     label = label or (lambda key: repr(key))
+    ranges = FIT_OPTION_RANGES if ranges is None else ranges
     for key, value in options.items():
         if value is None:
             continue
         if key == "subsample":
             want = _subsample_error(value)
-        elif key in FIT_OPTION_RANGES:
-            integer, lo, hi, lo_in, want = FIT_OPTION_RANGES[key]
+        elif key in ranges:
+            integer, lo, hi, lo_in, want = ranges[key]
             want = want if _range_error(value, integer, lo, hi, lo_in) else None
         else:
             continue

@@ -95,6 +95,8 @@ def test_usage_errors_are_one_line_pointing_at_help(capsys, argv, needle):
     (["--fix", "alpha=0.3", "--init", "alpha=0.2"], "--init and --fix both name alpha"),
     (["--fix", "alpha=0.3", "--fix", "alpha=0.4"], "--fix alpha is given twice"),
     (["--init", "alpha=inf"], "--init alpha: 'inf' is not finite"),
+    (["--mcmc", "--steps", "1000000000000"], "--steps must be an integer in [1, 1000000]"),
+    (["--mcmc", "--walkers", "10000", "--steps", "1000000"], "is a chain of more than"),
 ])
 def test_absurd_or_conflicting_fit_options_fail_before_the_input_is_read(capsys, tmp_path, flags,
                                                                           needle):

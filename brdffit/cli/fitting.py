@@ -83,6 +83,7 @@ def options_from(args):
 
     check_fit_options({"cutoff": args.cutoff, "subsample": args.subsample, "seed": args.seed,
                        "multistart": args.multistart}, lambda key: f"--{key}")
+    _check_mcmc_ranges(args)
     flags = FitOptions(
         model=args.model, loss=args.loss, solver=args.solver, cutoff=args.cutoff,
         subsample=args.subsample, seed=args.seed, multistart=args.multistart,
@@ -101,6 +102,17 @@ def options_from(args):
     options.check_params(model)
     _check_names(options)
     return model, options
+
+
+def _check_mcmc_ranges(args) -> None:
+    from ..config import MAX_CHAIN_VALUES, POSTERIOR_OPTION_RANGES, check_fit_options
+
+    values = {k: getattr(args, k, None) for k in POSTERIOR_OPTION_RANGES}
+    check_fit_options(values, lambda key: f"--{key.replace('_', '-')}", POSTERIOR_OPTION_RANGES)
+    walkers, steps = values["walkers"] or 32, values["steps"] or 1
+    if walkers * steps * 64 > MAX_CHAIN_VALUES:  # 64: a generous number of parameters
+        raise UsageError(f"--walkers {walkers} x --steps {steps} is a chain of more than "
+                         f"{MAX_CHAIN_VALUES:,} values; use fewer walkers or steps")
 
 
 def _check_names(options) -> None:
