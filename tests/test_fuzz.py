@@ -26,7 +26,7 @@ from data_formats.merl import MERLFormatError, MERLTable, read_merl
 from data_formats.samplelist import SampleListFormatError, read_samples
 from data_formats.samples import SampleSet
 
-FUZZ = settings(max_examples=120, deadline=None, derandomize=True,
+FUZZ = settings(max_examples=80, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 
 
