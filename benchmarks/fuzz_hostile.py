@@ -236,6 +236,13 @@ def main() -> int:
     warnings.filterwarnings("ignore", "Duplicate name", UserWarning)  # the generator's own zips
 
     jax.config.update("jax_enable_x64", True)
+    import functools
+
+    import brdffit.cli
+
+    # one parser for every in-process run (building it is 80% of a small run's time; parse_args
+    # does not change it): the code under test is the same
+    brdffit.cli.build_parser = functools.lru_cache(maxsize=1)(brdffit.cli.build_parser)
     rng = np.random.default_rng(args.seed)
     kinds = [("merl", args.merl, ".binary", merl_file, lambda p: ["info", p]),
              ("csv", args.lists - args.lists // 2, ".csv", csv_file, lambda p: ["info", p]),

@@ -100,7 +100,7 @@ class OutputSet:
         try:
             for p in self.paths:
                 self._folder(p.parent)
-            self._check_room(sizes or {})
+            self._check_room({Path(k): v for k, v in (sizes or {}).items() if k is not None})
         except BaseException:
             self.discard()
             raise
@@ -124,7 +124,7 @@ class OutputSet:
         need: dict = {}
         limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
         for p in self.paths:
-            size = int(sizes.get(p, sizes.get(str(p), DEFAULT_SIZE)))
+            size = int(sizes.get(p, DEFAULT_SIZE))
             if limit != resource.RLIM_INFINITY and size > limit:
                 raise OutputError(f"{p}: needs about {size:,} bytes but the file-size limit "
                                   f"(ulimit -f) is {limit:,} bytes; nothing was written")

@@ -9,6 +9,7 @@ the diagnostic figures into ``--outdir`` (default ``brdffit-demo``). Nothing is 
 from __future__ import annotations
 
 import functools
+import os
 import shutil
 import sys
 import tempfile
@@ -72,12 +73,24 @@ def run(args) -> int:
             outdir.mkdir(parents=True)
         except OSError as exc:
             raise UsageError(f"--outdir {outdir}: cannot create it ({exc.strerror})") from None
+    remove_if_empty = functools.partial(_rmdir_quietly, outdir)
+    if created:  # a folder made for this run goes again when nothing was published
+        add_cleanup(remove_if_empty)
     try:
         return _run(args, outdir, figures, result_path, written)
     except BaseException:
-        if created:  # a folder made for this run goes again when nothing was published
-            shutil.rmtree(outdir, ignore_errors=True)
+        if created:
+            remove_if_empty()
         raise
+    finally:
+        remove_cleanup(remove_if_empty)
+
+
+def _rmdir_quietly(folder) -> None:
+    try:
+        os.rmdir(folder)  # only when empty: never what was published
+    except OSError:
+        pass
 
 
 def _run(args, outdir, figures, result_path, written) -> int:
