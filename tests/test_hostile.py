@@ -312,9 +312,21 @@ def test_huge_vectors_give_no_numpy_warnings(tmp_path, capsys):
 
 # -- outputs ----------------------------------------------------------------------------------
 def test_never_replaces_a_device_even_with_force(capsys, tmp_path, samples_csv):
-    _fails(capsys, ["fit", str(samples_csv), "--model", "ggx", "--out", "/dev/full", "--force"],
-           "/dev/full: exists and is a character device")
-    assert Path("/dev/full").is_char_device()
+    """``--out DEVICE --force`` (before: the device node was replaced by a regular file). The
+    device is a private copy of /dev/full's node (a FIFO where mknod is not allowed), so the
+    old behaviour cannot damage the real one."""
+    import stat
+
+    device = tmp_path / "full"
+    try:
+        os.mknod(device, stat.S_IFCHR | 0o666, os.makedev(1, 7))
+        what = "a character device"
+    except OSError:
+        os.mkfifo(device)
+        what = "a FIFO"
+    _fails(capsys, ["fit", str(samples_csv), "--model", "ggx", "--out", str(device), "--force"],
+           f"full: exists and is {what}")
+    assert not device.is_file()
     (tmp_path / "link.json").symlink_to(tmp_path / "elsewhere.json")
     _fails(capsys, ["fit", str(samples_csv), "--model", "ggx", "--out",
                     str(tmp_path / "link.json"), "--force"], "is a symbolic link")
