@@ -71,8 +71,10 @@ def mutate(rng, data: bytes) -> bytes:
 
 def merl_file(rng, path: Path) -> None:
     kind = rng.integers(6)
-    if kind == 5:  # a sparse file with a legal, huge header
+    if kind == 5:  # a sparse file with a legal header: huge (refused) or up to 2^20 cells
         dims = np.array([rng.integers(1, 10_001), rng.integers(1, 10_001), rng.integers(1, 50)])
+        if rng.random() < 0.1:
+            dims = np.array([rng.integers(1, 129), rng.integers(1, 129), rng.integers(1, 65)])
         with open(path, "wb") as fh:
             fh.write(dims.astype("<i4").tobytes())
             fh.truncate(12 + 24 * int(np.prod(dims.astype(object))))
@@ -265,6 +267,8 @@ def main() -> int:
                 if k < args.subprocess:
                     run_subprocess(argv_of(path.name), folder, keep, counts, args)
                 path.unlink()
+                if (k + 1) % 1000 == 0:
+                    print(f"  {name} {k + 1}: {counts.total()} problems so far", flush=True)
             print(f"{name:7s} {n:6d} files in {time.perf_counter() - t1:6.1f} s", flush=True)
         os.chdir(ROOT)
     print(f"{counts.n} runs in {time.perf_counter() - t0:.0f} s: crashes {counts.crashes}, "

@@ -16,11 +16,11 @@ from pathlib import Path
 from ._common import (
     Progress,
     UsageError,
+    check_no_conflict,
     check_outputs,
     check_params,
     parse_assignments,
     read_input,
-    check_no_conflict,
     write_text,
 )
 
