@@ -16,13 +16,14 @@ Contract of :class:`OutputSet` (what ``fit``, ``plot``, ``synth`` and ``demo`` r
   overwrite without ``--force``" holds at the moment of publishing even when another process
   created the file during the fit; if any link fails, the files already linked by this set
   are removed again, so the set appears whole or not at all. With ``force`` existing regular
-  files are replaced by ``rename``.
+  files are replaced by ``rename`` (keeping their mode), one after the other.
 * **Always** (:meth:`OutputSet.discard`, also on ``SIGINT``/``SIGTERM`` through
   :mod:`brdffit.cli._signals`): the staging folders and every temporary in them are removed.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import resource
@@ -185,6 +186,8 @@ class OutputSet:
             raise OutputError(f"{path}: was not written (internal error); nothing was published")
         if self.force:
             _check_one(path, True)  # still not a device, FIFO or link at this moment
+            with contextlib.suppress(FileNotFoundError):  # a replaced file keeps its mode
+                os.chmod(staged, os.stat(path).st_mode & 0o7777)
             os.replace(staged, path)
             return
         try:
