@@ -91,9 +91,22 @@ def sin2_theta(w):
     return jnp.maximum(0.0, 1.0 - w[..., 2] ** 2)
 
 
+#: ``cos^2 theta`` at or below which :func:`tan2_theta` stops following its closed form. The
+#: readers keep directions down to ``cos theta > 1e-9`` (``data_formats.merl.HORIZON_EPS``), so
+#: the closed form must hold to ``cos^2 = 1e-18``; this threshold is 100x below it
+#: (``cos theta = 1e-10``), and ``1 / TAN2_COS2_MIN = 1e20`` is still finite in float32.
+TAN2_COS2_MIN = 1e-20
+
+
 def tan2_theta(w):
-    """``sin^2/cos^2``; ``+inf``-free: grazing directions give a large finite value."""
-    return safe_div(sin2_theta(w), cos2_theta(w), fill=1.0 / EPS)
+    r"""``tan^2 theta = sin^2 theta / cos^2 theta``, exact for every ``cos^2 theta > 1e-20``.
+
+    Masking functions grow like ``tan theta`` towards the horizon (GGX ``Lambda ~ alpha tan/2``,
+    RTR eq. 9.42), so this must not saturate above the readers' horizon ``cos theta > 1e-9``:
+    closer to the horizon than :data:`TAN2_COS2_MIN` (and below it) the value is the finite
+    ``1 / TAN2_COS2_MIN``, with a zero gradient (gradient-safe ``where``).
+    """
+    return safe_div(sin2_theta(w), cos2_theta(w), fill=1.0 / TAN2_COS2_MIN, eps=TAN2_COS2_MIN)
 
 
 def cos2_sin2_phi(w):

@@ -41,29 +41,119 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import math
+import os
+import numbers
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 
+import numpy as np
+
+from data_formats._files import NotRegularFileError, open_regular
+
 from .errors import ConfigError
 
-_SCALARS = {  # key -> (types, check, what the check wants)
+_SCALARS = {  # key -> (types, check, what the check wants); numeric ranges: check_fit_options
     "model": (str, None, "a model name"),
     "loss": (str, None, "a loss name"),
-    "cutoff": ((int, float), lambda v: 0 < v <= 90, "degrees in (0, 90]"),
-    "subsample": (int, lambda v: v > 0, "a positive integer"),
-    "seed": (int, lambda v: v >= 0, "a non-negative integer"),
-    "multistart": (int, lambda v: v >= 0, "a non-negative integer"),
+    "cutoff": ((int, float), None, "degrees in (0, 90]"),
+    "subsample": ((int, float), None, "a sample count or a fraction in (0, 1]"),
+    "seed": (int, None, "a non-negative integer"),
+    "multistart": (int, None, "a non-negative integer"),
     "covariance": (str, lambda v: v in ("sandwich", "gn"), '"sandwich" or "gn"'),
 }
 _SOLVER = {
     "name": (str, None, "a solver name"),
-    "rtol": ((int, float), lambda v: v > 0, "a positive number"),
-    "atol": ((int, float), lambda v: v > 0, "a positive number"),
-    "max_steps": (int, lambda v: v > 0, "a positive integer"),
-    "ftol": ((int, float), lambda v: 0 < v < 1, "a number in (0, 1)"),
+    "rtol": ((int, float), None, "a positive number"),
+    "atol": ((int, float), None, "a positive number"),
+    "max_steps": (int, None, "a positive integer"),
+    "ftol": ((int, float), None, "a number in (0, 1)"),
     "precision": (str, lambda v: v in ("float64", "float32"), '"float64" or "float32"'),
 }
+
+#: The most samples a subsample may ask for (the readers' limit, ``MAX_SAMPLES`` = 2^24).
+MAX_SUBSAMPLE = 2**24
+#: Ranges of the numeric options of :func:`brdffit.fit`: ``key -> (integer?, low, high,
+#: low included?, what to say)``. :func:`check_fit_options` is the one place that enforces them.
+FIT_OPTION_RANGES = {
+    "cutoff": (False, 0.0, 90.0, False, "degrees in (0, 90]"),
+    "seed": (True, 0, 2**32 - 1, True, "an integer in [0, 2^32 - 1]"),
+    "multistart": (True, 0, 1000, True, "an integer in [0, 1000]"),
+    "max_steps": (True, 1, 100_000, True, "an integer in [1, 100000]"),
+    "rtol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
+    "atol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
+    "ftol": (False, 0.0, 1.0, False, "a number in (0, 1)"),
+}
+#: Ranges of the posterior-sampling options (``brdffit fit --mcmc``), checked the same way.
+#: The chain holds ``walkers * steps * parameters`` doubles: 10^4 x 10^5 x 10 would be 80 GB,
+#: so the product is bounded too (:data:`MAX_CHAIN_VALUES`).
+POSTERIOR_OPTION_RANGES = {
+    "walkers": (True, 2, 10_000, True, "an even integer in [2, 10000]"),
+    "steps": (True, 1, 1_000_000, True, "an integer in [1, 1000000]"),
+    "burn": (True, 0, 1_000_000, True, "an integer in [0, 1000000]"),
+    "mcmc_subsample": (True, 1, 2**24, True, "an integer in [1, 16777216]"),
+}
+MAX_CHAIN_VALUES = 10**8
+
+#: The narrowest ``[bounds]`` interval, relative to ``max(1, |bound|)``; narrower ones cannot
+#: be fitted in float64 (the Jacobian degenerates): fix the parameter instead.
+MIN_BOUNDS_WIDTH = 1e-6
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
+
+
+def _is_real(value) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def _range_error(value, integer, lo, hi, lo_in) -> bool:
+    """True when ``value`` is not of the right kind or outside ``lo .. hi``."""
+    if not (_is_int(value) if integer else _is_real(value)) or not math.isfinite(value):
+        return True
+    return not ((lo <= value if lo_in else lo < value) and value <= hi)
+
+
+def _subsample_error(value) -> str | None:
+    if not _is_real(value):
+        return None  # a Subsample object: the fitter checks it
+    if _is_int(value) and 1 <= value <= MAX_SUBSAMPLE:
+        return None
+    if not _is_int(value) and math.isfinite(value) and 0 < value <= 1:
+        return None
+    return f"a sample count in [1, {MAX_SUBSAMPLE}] or a fraction in (0, 1]"
+
+
+def check_fit_options(options: Mapping, label=None, ranges=None) -> Mapping:
+    """Refuse, before any work, numeric options of :func:`brdffit.fit` outside their ranges.
+
+    ``options`` maps option names (``rtol``, ``multistart``, ...) to values; ``None`` and names
+    without a range are ignored. The ranges are :data:`FIT_OPTION_RANGES` plus ``subsample``
+    (a count in ``[1, 2^24]`` or a fraction in ``(0, 1]``), or ``ranges`` (e.g.
+    :data:`POSTERIOR_OPTION_RANGES`) in their place: every value must be finite and of
+    the right kind (an integer where a count is meant; ``bool`` is not a number). ``label(key)``
+    says how the message names an option (``"--multistart"`` on the command line). Raises
+    :class:`~brdffit.errors.ConfigError` ("'multistart' must be an integer in [0, 1000], got
+    100000000"); returns ``options`` unchanged.
+    """
+    label = label or (lambda key: repr(key))
+    ranges = FIT_OPTION_RANGES if ranges is None else ranges
+    for key, value in options.items():
+        if value is None:
+            continue
+        if key == "subsample":
+            want = _subsample_error(value)
+        elif key in ranges:
+            integer, lo, hi, lo_in, want = ranges[key]
+            want = want if _range_error(value, integer, lo, hi, lo_in) else None
+        else:
+            continue
+        if want is not None:
+            kind = "" if _is_real(value) else f"{type(value).__name__} "
+            raise ConfigError(f"{label(key)} must be {want}, got {kind}{value!r}")
+    return options
 _TABLES = ("init", "fixed", "bounds", "solver")
 _FREE_TEXT = ("description",)
 VALID_KEYS = tuple(_SCALARS) + _TABLES + _FREE_TEXT
@@ -136,6 +226,12 @@ class FitOptions:
                 _with_context(f"[{table}] {name}", param.check_bounds, value)
         for name, (lo, hi) in self.bounds.items():
             param = model.param(name)
+            if hi - lo < MIN_BOUNDS_WIDTH * max(1.0, abs(lo), abs(hi)):
+                raise ConfigError(
+                    f"[bounds] {name} = [{lo:g}, {hi:g}] is narrower than {MIN_BOUNDS_WIDTH:g}; "
+                    f"such a range cannot be fitted: hold the parameter with [fixed] {name} = "
+                    f"{hi:g} (or --fix {name}={hi:g}) instead"
+                )
             if not param.lower <= lo < hi <= param.upper:
                 raise ConfigError(
                     f"[bounds] {name} = [{lo:g}, {hi:g}] must satisfy {param.lower:g} ≤ lower < "
@@ -169,26 +265,29 @@ def _check_scalar(where: str, key: str, value, spec):
         )
     if check is not None and not check(value):
         raise ConfigError(f"{where}{key!r} must be {want}, got {value!r}")
-    return float(value) if types == (int, float) else value
+    return float(value) if key in ("cutoff", "rtol", "atol") else value
 
 
 def _param_value(where: str, key: str, value):
     """A number or a list of three numbers (an RGB parameter)."""
-    ok_number = isinstance(value, (int, float)) and not isinstance(value, bool)
-    ok_rgb = isinstance(value, list) and len(value) == 3 and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
-    )
+    def finite(v):
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+    ok_number = finite(value)
+    ok_rgb = isinstance(value, list) and len(value) == 3 and all(finite(v) for v in value)
     if not (ok_number or ok_rgb):
         raise ConfigError(
-            f"{where}{key!r} must be a number or a list of 3 numbers [r, g, b], got {value!r}"
+            f"{where}{key!r} must be a finite number or a list of 3 finite numbers [r, g, b], "
+            f"got {value!r}"
         )
     return float(value) if ok_number else tuple(float(v) for v in value)
 
 
 def _bounds_value(where: str, key: str, value):
     pair = isinstance(value, list) and len(value) == 2
-    if not pair or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-        raise ConfigError(f"{where}{key!r} must be [lower, upper], got {value!r}")
+    if not pair or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                           and math.isfinite(v) for v in value):
+        raise ConfigError(f"{where}{key!r} must be [lower, upper] (finite numbers), got {value!r}")
     lo, hi = float(value[0]), float(value[1])
     if not lo < hi:
         raise ConfigError(f"{where}{key!r} = {value!r}: lower must be below upper")
@@ -222,6 +321,11 @@ def parse_config(data: Mapping, source: str = "<config>") -> FitOptions:
             opts[key] = {k: conv(f"{where}[{key}] ", k, v) for k, v in _table(where, key, value).items()}
         else:
             raise _unknown_key(where, key, VALID_KEYS)
+    both = sorted(set(opts.get("init", {})) & set(opts.get("fixed", {})))
+    if both:
+        raise ConfigError(f"{where}{', '.join(both)} is both in [init] and in [fixed]; a "
+                          f"parameter is either fitted from a start value or held fixed: keep one")
+    check_fit_options(opts, lambda key: f"{where}{'[solver] ' if key in _SOLVER else ''}{key!r}")
     return FitOptions(**opts)
 
 
@@ -239,7 +343,7 @@ def available_presets() -> list[str]:
 def find_config(name_or_path) -> Path:
     """The preset file for a path, or for a bare name (``ggx`` → ``configs/ggx.toml``)."""
     path = Path(name_or_path)
-    if path.is_file():
+    if path.exists() and not path.is_dir():  # not a regular file: load_config says so
         return path
     bare = path.parent == Path(".") and path.suffix == ""
     if bare:
@@ -258,14 +362,28 @@ def find_config(name_or_path) -> Path:
     raise ConfigError(f"config file {str(path)!r} not found; pass a path to a .toml preset")
 
 
+#: The largest preset file read (presets are a few hundred bytes).
+MAX_PRESET_BYTES = 1 << 20
+
+
 def load_config(name_or_path) -> FitOptions:
     """Read and validate a TOML preset (by path, or a bare name: see :func:`find_config`)."""
     path = find_config(name_or_path)
     try:
-        with open(path, "rb") as fh:
+        with open_regular(path, "rb") as fh:
+            if os.fstat(fh.fileno()).st_size > MAX_PRESET_BYTES:
+                raise ConfigError(f"{path}: larger than {MAX_PRESET_BYTES:,} bytes; a preset is a "
+                                  f"few lines of TOML")
             data = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML (not UTF-8 text: {exc.reason} at byte "
+                          f"{exc.start})") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: not valid TOML (nested too deeply)") from None
+    except NotRegularFileError as exc:
+        raise ConfigError(str(exc)) from None
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read the preset ({exc.strerror})") from None
     return parse_config(data, str(path))

@@ -27,11 +27,12 @@ import os
 import numpy as np
 
 from ._atomic import atomic_write
+from ._files import NotRegularFileError, open_regular
 from .rusinkiewicz import dirs_from_half_diff, fold_phi_d, half_diff_from_dirs
 from .samples import SampleSet
 
 __all__ = [
-    "N_TH", "N_TD", "N_PD", "MERL_SHAPE", "SCALE", "MAX_DIM", "HORIZON_EPS",
+    "N_TH", "N_TD", "N_PD", "MERL_SHAPE", "SCALE", "MAX_DIM", "MAX_CELLS", "HORIZON_EPS",
     "MERLFormatError", "MERLTable", "read_merl", "write_merl", "expected_file_size", "snap_to_file",
     "merl_index", "cell_angles", "cell_directions", "above_horizon",
     "lookup_nearest", "lookup_linear", "lookup_nearest_angles", "lookup_linear_angles",
@@ -44,6 +45,11 @@ MERL_SHAPE = (N_TH, N_TD, N_PD)
 SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
 #: Largest header dimension the reader accepts (the database uses at most 180).
 MAX_DIM = 10_000
+#: Most cells (``n_th * n_td * n_pd``) the reader accepts: 2^23, 5.75x the database grid. The
+#: body is then 192 MiB; reading it peaks near 2.1x that (body plus channel-last rgb) and
+#: ``brdffit info`` near 3x (its statistics copy the valid cells). A header asking for more is
+#: refused before anything is allocated. (At 2^24 the fuzz run saw ``info`` peak at 1.1 GB.)
+MAX_CELLS = 2**23
 #: A direction is above the horizon when ``cos(theta) > HORIZON_EPS`` (see ``above_horizon``).
 HORIZON_EPS = 1e-9
 _HEADER_BYTES = 12
@@ -435,12 +441,19 @@ _FIX = "Use a complete MERL .binary file (90 x 90 x 180: 34,992,012 bytes), e.g.
 
 
 def _open_for_reading(path: str):
-    """Open ``path`` in binary mode, turning every OS-level failure into a MERLFormatError."""
+    """Open ``path`` in binary mode, turning every OS-level failure into a MERLFormatError.
+
+    Only regular files are opened (:func:`data_formats._files.open_regular`): a FIFO would block
+    and a device such as ``/dev/zero`` never ends.
+    """
     if os.path.isdir(path):
         raise MERLFormatError(path, "is a directory", "a MERL .binary file", "a directory",
                               "Pass the path of one .binary file inside it")
     try:
-        return open(path, "rb")
+        return open_regular(path, "rb")
+    except NotRegularFileError as exc:
+        raise MERLFormatError(path, "not a regular file", "a MERL .binary file", exc.what,
+                              "Copy the data into a file and pass that") from None
     except FileNotFoundError:
         raise MERLFormatError(path, "no such file", "an existing MERL .binary file",
                               "nothing at this path", "Check the path and the working directory"
@@ -468,6 +481,12 @@ def _check_header(path: str, header: bytes, size: int):
         raise MERLFormatError(path, f"file size does not match its header ({how} bytes)",
                               f"12 + 8*3*{dims[0]}*{dims[1]}*{dims[2]} = {want:,} bytes",
                               f"{size:,} bytes", _FIX)
+    cells = dims[0] * dims[1] * dims[2]
+    if cells > MAX_CELLS:
+        raise MERLFormatError(path, "header asks for too many cells",
+                              f"at most {MAX_CELLS:,} cells (the database has 1,458,000)",
+                              f"dims {dims} = {cells:,} cells ({8 * 3 * cells / 2**30:.1f} GiB)",
+                              "The reader refuses tables this large before allocating memory")
     return dims
 
 
@@ -529,7 +548,7 @@ def read_merl(path, *, mmap: bool = False) -> MERLTable:
         dims = _check_header(p, f.read(_HEADER_BYTES), size)
         n = 3 * int(np.prod(dims))
         if mmap:
-            body = np.memmap(p, dtype="<f8", mode="r", offset=_HEADER_BYTES, shape=(n,))
+            body = np.memmap(f, dtype="<f8", mode="r", offset=_HEADER_BYTES, shape=(n,))
         else:
             body = np.fromfile(f, dtype="<f8", count=n)
             if body.size != n:  # the file shrank between stat and read

@@ -1,5 +1,6 @@
 """TOML presets: every shipped preset loads and validates; layers merge; mistakes are named."""
 
+import os
 import re
 import tomllib
 from pathlib import Path
@@ -7,7 +8,7 @@ from pathlib import Path
 import pytest
 
 import brdffit
-from brdffit.config import FitOptions, find_config, load_config, parse_config
+from brdffit.config import FitOptions, check_fit_options, find_config, load_config, parse_config
 from brdffit.errors import ConfigError, UnknownNameError
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
@@ -97,16 +98,25 @@ def test_flags_override_preset_and_free_fixed_parameters():
         ("cutof = 80", "Did you mean 'cutoff'?"),
         ('cutoff = "80"', "'cutoff' must be degrees in (0, 90], got str '80'"),
         ("cutoff = 95", "'cutoff' must be degrees in (0, 90], got 95"),
-        ("subsample = 1.5", "'subsample' must be a positive integer, got float 1.5"),
+        ("subsample = 1.5", "'subsample' must be a sample count in [1, 16777216] or a fraction in (0, 1], got 1.5"),
         ("seed = true", "'seed' must be a non-negative integer, got bool True"),
         ("model = 3", "'model' must be a model name, got int 3"),
         ("init = 3", "'init' must be a table ([init]), got 3"),
-        ("[init]\nalpha = 'x'", "[init] 'alpha' must be a number or a list of 3 numbers"),
-        ("[fixed]\nf0 = [1, 2]", "[fixed] 'f0' must be a number or a list of 3 numbers"),
+        ("[init]\nalpha = 'x'", "[init] 'alpha' must be a finite number or a list of 3 finite numbers"),
+        ("[fixed]\nf0 = [1, 2]", "[fixed] 'f0' must be a finite number or a list of 3 finite numbers"),
         ("[bounds]\nalpha = [0.5, 0.1]", "[bounds] 'alpha' = [0.5, 0.1]: lower must be below upper"),
         ("[bounds]\nalpha = 0.5", "[bounds] 'alpha' must be [lower, upper]"),
         ("[solver]\nrtoll = 1e-6", "[solver] unknown key 'rtoll'; valid keys: name, rtol, atol"),
-        ("[solver]\nmax_steps = 0", "[solver] 'max_steps' must be a positive integer, got 0"),
+        ("[solver]\nmax_steps = 0", "[solver] 'max_steps' must be an integer in [1, 100000], got 0"),
+        ("multistart = 9223372036854775807", "'multistart' must be an integer in [0, 1000]"),
+        ("multistart = -1", "'multistart' must be an integer in [0, 1000], got -1"),
+        ("seed = -1", "'seed' must be an integer in [0, 2^32 - 1], got -1"),
+        ("[solver]\nrtol = 9223372036854775807", "[solver] 'rtol' must be a number in (0, 1]"),
+        ("[solver]\natol = nan", "[solver] 'atol' must be a number in (0, 1], got nan"),
+        ("subsample = inf", "'subsample' must be a sample count"),
+        ("[init]\nalpha = inf", "[init] 'alpha' must be a finite number"),
+        ("[bounds]\nalpha = [0.1, inf]", "[bounds] 'alpha' must be [lower, upper] (finite numbers)"),
+        ("[init]\nalpha = 0.2\n[fixed]\nalpha = 0.3", "alpha is both in [init] and in [fixed]"),
     ],
 )
 def test_mistakes_name_the_key_and_the_choices(tmp_path, text, message):
@@ -142,3 +152,44 @@ def test_bare_names_paths_and_bad_files(tmp_path, monkeypatch):
     (tmp_path / "broken.toml").write_text("loss = \n")
     with pytest.raises(ConfigError, match="broken.toml: not valid TOML"):
         load_config(tmp_path / "broken.toml")
+
+
+def test_a_preset_that_is_not_utf8_or_not_a_file_is_one_clear_error(tmp_path):
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(b'description = "caf\xe9"\n')
+    with pytest.raises(ConfigError, match=r"latin1.toml: not valid TOML \(not UTF-8 text"):
+        load_config(path)
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    with pytest.raises(ConfigError, match="fifo.toml: is a FIFO"):
+        load_config(fifo)  # before the fix: open() blocked forever
+
+
+def test_bounds_too_narrow_to_fit_are_refused_with_the_escape_hatch():
+    ggx = brdffit.get_model("ggx")
+    with pytest.raises(ConfigError, match=r"\[bounds\] f0 = \[1e-300, 1e-299\] is narrower.*"
+                                          r"\[fixed\] f0"):
+        FitOptions(bounds={"f0": (1e-300, 1e-299)}).check_params(ggx)
+    FitOptions(bounds={"alpha": (0.01, 0.0101)}).check_params(ggx)  # narrow but fittable
+
+
+@pytest.mark.parametrize("key, value, message", [
+    ("multistart", 100_000_000, "'multistart' must be an integer in [0, 1000], got 100000000"),
+    ("multistart", 2.0, "'multistart' must be an integer in [0, 1000], got 2.0"),
+    ("max_steps", True, "'max_steps' must be an integer in [1, 100000], got bool True"),
+    ("rtol", 9223372036854775807, "'rtol' must be a number in (0, 1]"),
+    ("atol", -1e-8, "'atol' must be a number in (0, 1], got -1e-08"),
+    ("seed", 2**32, "'seed' must be an integer in [0, 2^32 - 1]"),
+    ("subsample", float("inf"), "'subsample' must be a sample count in [1, 16777216]"),
+    ("subsample", 0, "'subsample' must be a sample count"),
+    ("subsample", 1.5, "or a fraction in (0, 1], got 1.5"),
+    ("cutoff", float("nan"), "'cutoff' must be degrees in (0, 90], got nan"),
+    ("edm_tol", -1.0, "'edm_tol' must be a number in [0, 1]"),
+])
+def test_fit_refuses_absurd_numeric_options_before_any_work(key, value, message):
+    """The check runs before the table is touched: ``None`` as a table would fail later."""
+    with pytest.raises(ConfigError) as err:
+        brdffit.fit(None, "ggx", **{key: value})
+    assert message in str(err.value)
+    assert check_fit_options({"subsample": 0.25, "seed": 0, "multistart": 1000, "rtol": 1.0,
+                              "max_steps": 1, "atol": 1e-300, "edm_tol": 0.0}) is not None

@@ -2,7 +2,14 @@
 
 One module per command (``add_parser`` + ``run``); this module builds the parser and turns user
 mistakes into one line on stderr. Exit codes: 0 success; 1 a fit that did not converge (its
-results are still written, marked as such); 2 bad input or usage. ``--debug`` shows tracebacks.
+results are still written, marked as such); 2 bad input or usage, including a usage error
+found by argparse, an output that cannot be written and running out of memory; 130 / 143
+interrupted by SIGINT / SIGTERM (see :mod:`brdffit.cli._signals`). ``--debug`` shows tracebacks.
+
+Standard output goes through :class:`_Stdout`: a reader that closes the pipe early
+(``brdffit models | head -1``) silences the rest of the output without an error, and any other
+failure to write it (``/dev/full``) is one line and exit code 2. NumPy's floating-point
+RuntimeWarnings never reach stderr: the readers and commands check values themselves.
 
 The commands set float64 (``jax_enable_x64``) and the per-user persistent compilation cache
 (:mod:`brdffit.compilation_cache`) before any JAX work; the library itself never does.
@@ -12,8 +19,10 @@ JAX and the fitter are imported only inside the commands that need them.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import traceback
+import warnings
 
 from . import catalog, demo, fitting, info, plotting, synth
 
@@ -23,8 +32,60 @@ COMMANDS = (fitting, info, synth, plotting, catalog, demo)
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_USAGE = 0, 1, 2
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with usage errors in one line that points to ``--help`` (exit code 2)."""
+
+    def error(self, message):
+        text = " ".join(str(message).split())
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {text} (see `{self.prog} --help`)\n")
+
+
+class StdoutError(OSError):
+    """Standard output could not be written (other than a reader closing the pipe)."""
+
+
+class _Stdout:
+    """A proxy of ``sys.stdout``: ``BrokenPipeError`` silences it, other write errors raise
+    :class:`StdoutError` (one line, exit code 2)."""
+
+    def __init__(self, stream):
+        self._stream, self.closed_by_reader = stream, False
+
+    def _guard(self, fn, *args):
+        if self.closed_by_reader:
+            return None
+        try:
+            return fn(*args)
+        except BrokenPipeError:
+            self.closed_by_reader = True
+            _silence(self._stream)
+            return None
+        except OSError as exc:
+            raise StdoutError(exc.errno, f"cannot write to standard output "
+                              f"({exc.strerror or exc})") from None
+
+    def write(self, text):
+        return self._guard(self._stream.write, text)
+
+    def flush(self):
+        return self._guard(self._stream.flush)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def _silence(stream) -> None:
+    """Point the stream's descriptor at /dev/null so the interpreter's final flush is quiet."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, stream.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):  # not a real file (e.g. captured in tests)
+        pass
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="brdffit",
         allow_abbrev=False,
         description="Fit analytic BRDF models to measured reflectance (MERL tables, sample lists).",
@@ -48,8 +109,7 @@ def _user_errors() -> tuple[type[BaseException], ...]:
 
     from ..errors import BrdffitError
 
-    errors: list = [BrdffitError, SampleListFormatError, FileNotFoundError, PermissionError,
-                    IsADirectoryError]
+    errors: list = [BrdffitError, SampleListFormatError, OSError]
     try:
         from data_formats.merl import MERLFormatError
 
@@ -69,29 +129,75 @@ def _enable_x64() -> None:
     compilation_cache.enable()
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
+def main(argv: list[str] | None = None, *, handle_signals: bool | None = None) -> int:
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit code.
+
+    ``handle_signals`` (default: when ``argv`` is None, i.e. run as a program) installs the
+    SIGINT/SIGTERM watcher of :mod:`brdffit.cli._signals`, which ends the process itself
+    (exit code 130 / 143) after removing every temporary file.
+    """
+    from ._signals import SignalExit
+
+    handle = argv is None if handle_signals is None else handle_signals
+    watcher = SignalExit("") if handle else None
+    if watcher is not None:
+        watcher.__enter__()
+    saved, sys.stdout = sys.stdout, _Stdout(sys.stdout)
+    try:
+        return _main(argv, watcher)
+    finally:
+        sys.stdout = saved
+        if watcher is not None:
+            watcher.__exit__(None, None, None)
+
+
+def _main(argv, watcher) -> int:
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # reported by the command's parser, so the pointer is to its --help
+            _command_parser(parser, args.command).error(
+                f"unrecognized arguments: {' '.join(extra)}")
     except SystemExit as exc:  # --help, --version (0) and usage errors (2)
         return int(exc.code or 0) if not isinstance(exc.code, str) else EXIT_USAGE
+    if watcher is not None:
+        watcher.command = args.command
     try:
-        if getattr(args, "needs_jax", True):
-            _enable_x64()
-        return int(args.run(args) or 0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # NumPy's overflow/invalid notes
+            if getattr(args, "needs_jax", True):
+                _enable_x64()
+            code = int(args.run(args) or 0)
+            sys.stdout.flush()
+            return code
     except _user_errors() as exc:
-        if args.debug:
-            traceback.print_exc()
-        print(f"brdffit {args.command}: error: {_one_line(exc)}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
+        return _fail(args, _one_line(exc))
+    except MemoryError:
+        return _fail(args, "out of memory; the input is too large for this machine (see the "
+                     "input limits in README.md)")
+    except KeyboardInterrupt:  # in-process use without the signal watcher
         print(f"brdffit {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _command_parser(parser, command):
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction) and command in action.choices:
+            return action.choices[command]
+    return parser
+
+
+def _fail(args, text: str) -> int:
+    if args.debug:
+        traceback.print_exc()
+    print(f"brdffit {args.command}: error: {text}", file=sys.stderr)
+    return EXIT_USAGE
 
 
 def _one_line(exc: BaseException) -> str:
     text = str(exc) or type(exc).__name__
     if isinstance(exc, OSError) and exc.filename and exc.strerror:
         text = f"{exc.filename}: {exc.strerror}"
+    elif isinstance(exc, OSError) and exc.strerror:
+        text = exc.strerror
     return " ".join(text.split())

@@ -5,6 +5,7 @@ Nothing here imports JAX; the commands import it (and the fitter) only when they
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections.abc import Callable, Iterable
@@ -31,6 +32,8 @@ def parse_value(text: str, where: str):
         raise UsageError(
             f"{where}: {text!r} is not a number or an RGB triple like 0.9,0.6,0.3"
         ) from None
+    if not all(math.isfinite(v) for v in values):
+        raise UsageError(f"{where}: {text!r} is not finite; give finite numbers")
     if len(values) == 1:
         return values[0]
     if len(values) == 3:
@@ -39,14 +42,27 @@ def parse_value(text: str, where: str):
 
 
 def parse_assignments(items: Iterable[str] | None, flag: str) -> dict:
-    """``["alpha=0.1", "f0=0.9,0.6,0.3"]`` → ``{"alpha": 0.1, "f0": (0.9, 0.6, 0.3)}``."""
+    """``["alpha=0.1", "f0=0.9,0.6,0.3"]`` → ``{"alpha": 0.1, "f0": (0.9, 0.6, 0.3)}``.
+
+    A name given twice is an error (which value was meant is not ours to guess).
+    """
     out = {}
     for item in items or ():
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
             raise UsageError(f"{flag} {item!r}: expected NAME=VALUE, e.g. {flag} alpha=0.1")
+        if name.strip() in out:
+            raise UsageError(f"{flag} {name.strip()} is given twice; give each parameter once")
         out[name.strip()] = parse_value(value, f"{flag} {name.strip()}")
     return out
+
+
+def check_no_conflict(init: dict, fixed: dict) -> None:
+    """A parameter both started (``--init``) and held (``--fix``) is a contradiction."""
+    both = sorted(set(init) & set(fixed))
+    if both:
+        raise UsageError(f"--init and --fix both name {', '.join(both)}; a parameter is either "
+                         f"fitted from a start value (--init) or held fixed (--fix): keep one")
 
 
 def check_params(model, values: dict, flag: str) -> dict:
@@ -63,8 +79,24 @@ def check_params(model, values: dict, flag: str) -> dict:
 # -- inputs -----------------------------------------------------------------------------------
 def read_input(path: str):
     """A MERL table (``.binary``) or a sample list (``.csv``, ``.npz``), by suffix
-    (:func:`brdffit.io.read_path`, the reader dispatch ``brdffit.fit`` uses for a path)."""
+    (:func:`brdffit.io.read_path`, the reader dispatch ``brdffit.fit`` uses for a path); only
+    a regular file is opened (:func:`check_readable`)."""
+    p = Path(path)
+    if p.exists():
+        check_readable(p)
     return read_path(path)
+
+
+def check_readable(path: Path) -> None:
+    """Refuse, before opening, anything that is not a regular file (a FIFO blocks ``open``)."""
+    import stat
+
+    from data_formats._files import describe_mode
+
+    mode = path.stat().st_mode
+    if not stat.S_ISREG(mode):
+        raise UsageError(f"{path}: is {describe_mode(mode)}, not a regular file; copy the data "
+                         f"into a file and pass that")
 
 
 def is_table(data) -> bool:
@@ -73,23 +105,11 @@ def is_table(data) -> bool:
 
 
 # -- outputs ----------------------------------------------------------------------------------
-def check_outputs(paths: Iterable[str | None], force: bool) -> list[Path]:
-    """Refuse, before any work, outputs that exist (unless ``force``) or have no folder."""
-    out = []
-    for path in paths:
-        if path is None:
-            continue
-        p = Path(path)
-        if p.is_dir():
-            raise UsageError(f"{path}: is a directory; give a file name for the output")
-        if p.exists() and not force:
-            raise UsageError(f"{path}: already exists; pass --force to overwrite it")
-        if not p.parent.is_dir() and str(p.parent) not in ("", "."):
-            raise UsageError(f"{path}: folder {str(p.parent)!r} does not exist; create it first")
-        out.append(p)
-    if len({q.resolve() for q in out}) != len(out):
-        raise UsageError("two outputs name the same file; give each output its own path")
-    return out
+def check_outputs(paths: Iterable[str | None], force: bool, sizes: dict | None = None):
+    """The :class:`~brdffit.cli._outputs.OutputSet` of ``paths``, checked before any work."""
+    from ._outputs import OutputSet
+
+    return OutputSet(paths, force, sizes)
 
 
 def atomic_write(path, write: Callable[[Path], None]) -> Path:

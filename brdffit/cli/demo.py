@@ -8,12 +8,17 @@ the diagnostic figures into ``--outdir`` (default ``brdffit-demo``). Nothing is 
 
 from __future__ import annotations
 
+import functools
+import os
+import shutil
+import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from ._common import Progress, check_outputs, write_text
+from ._common import Progress, UsageError, check_outputs, write_text
+from ._signals import add_cleanup, remove_cleanup
 
 #: The known material: a gold-like metallic paint.
 TRUTH = {"diffuse": (0.10, 0.06, 0.02), "f0": (0.90, 0.60, 0.30), "alpha": 0.15}
@@ -55,24 +60,53 @@ def comparison(result, truth: dict) -> str:
 
 
 def run(args) -> int:
-    from .. import get_model
-    from ..api import fit
-    from .plotting import figure_paths, write_figures
-    from .synth import synthesize_table
+    from .plotting import figure_paths
 
     outdir = Path(args.outdir)
     if outdir.exists() and not outdir.is_dir():
-        from ._common import UsageError
-
         raise UsageError(f"--outdir {outdir}: exists and is not a folder")
     figures, result_path = outdir / "demo.png", outdir / "result.json"
-    if outdir.is_dir():  # a new folder is created only once there is something to write
-        check_outputs([result_path, *figure_paths(figures)], args.force)
+    written = figure_paths(figures)
+    created = not outdir.exists()
+    if created:
+        try:
+            outdir.mkdir(parents=True)
+        except OSError as exc:
+            raise UsageError(f"--outdir {outdir}: cannot create it ({exc.strerror})") from None
+    remove_if_empty = functools.partial(_rmdir_quietly, outdir)
+    if created:  # a folder made for this run goes again when nothing was published
+        add_cleanup(remove_if_empty)
+    try:
+        return _run(args, outdir, figures, result_path, written)
+    except BaseException:
+        if created:
+            remove_if_empty()
+        raise
+    finally:
+        remove_cleanup(remove_if_empty)
+
+
+def _rmdir_quietly(folder) -> None:
+    try:
+        os.rmdir(folder)  # only when empty: never what was published
+    except OSError:
+        pass
+
+
+def _run(args, outdir, figures, result_path, written) -> int:
+    from .. import get_model
+    from ..api import fit
+    from .plotting import write_figures
+    from .synth import synthesize_table
+
     progress = Progress(args.quiet)
     model = get_model(MODEL)
-    with tempfile.TemporaryDirectory(prefix="brdffit-demo-") as tmp:
+    with check_outputs([result_path, *written], args.force) as outputs, \
+            tempfile.TemporaryDirectory(prefix="brdffit-demo-") as tmp:
         from data_formats.merl import read_merl, write_merl
 
+        cleanup = functools.partial(shutil.rmtree, tmp, ignore_errors=True)
+        add_cleanup(cleanup)  # os._exit on a signal skips the context manager
         progress(f"synthesizing a {MODEL} table with {NOISE:.0%} noise")
         path = Path(tmp) / "gold-paint.binary"
         write_merl(path, synthesize_table(model, TRUTH, noise=NOISE, seed=SEED, name=path.stem))
@@ -80,12 +114,15 @@ def run(args) -> int:
         progress(f"fitting {MODEL} to {path.name} ({path.stat().st_size:,} bytes)")
         result = fit(table, model, subsample=args.subsample, throw=False,
                      progress=progress if progress.enabled else None)
+        outputs.write(result_path, lambda tmp_path: write_text(tmp_path, result.to_json() + "\n"))
+        outputs.write(figures, lambda base: write_figures(
+            table, base, model=model, params=result.params, converged=result.success,
+            progress=progress), base=True)
         print(result.summary())
         print(f"\nrecovered against true ({MODEL}, {NOISE:.0%} noise):")
         print(comparison(result, TRUTH))
-        outdir.mkdir(parents=True, exist_ok=True)
-        write_text(result_path, result.to_json() + "\n")
-        written = write_figures(table, figures, model=model, params=result.params,
-                                converged=result.success, progress=progress)
+        sys.stdout.flush()
+        outputs.publish()
+        remove_cleanup(cleanup)
     print(f"\nwrote {result_path} and " + ", ".join(str(p) for p in written))
     return 0 if result.success else 1

@@ -7,12 +7,15 @@ results, best first.
 
 Options come from three layers, later ones winning: the code's defaults, a preset
 (``--config``, see :mod:`brdffit.config`), then the flags. Every output is checked before the fit
-runs (an existing file needs ``--force``), so no work is wasted and nothing partial is left.
+runs (an existing file needs ``--force``), so no work is wasted; the outputs are written into a
+staging folder and published together after the summary is printed, so either the whole set
+appears or none does (:mod:`brdffit.cli._outputs`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import sys
 from pathlib import Path
 
@@ -21,7 +24,7 @@ from ._words import cli_words
 from ._common import (
     Progress,
     UsageError,
-    atomic_write,
+    check_no_conflict,
     check_outputs,
     check_params,
     parse_assignments,
@@ -31,11 +34,13 @@ from ._common import (
 
 
 def _count_or_fraction(text: str):
+    """``200000`` or ``1e5`` → a count (int), ``0.1`` → a fraction; ranges: check_fit_options."""
     try:
         value = float(text)
     except ValueError:
         raise UsageError(f"--subsample {text!r}: give a count (200000) or a fraction (0.1)") from None
-    return value if "." in text or "e" in text.lower() and value < 1 else int(value)
+    whole = math.isfinite(value) and value == int(value) and value >= 1
+    return int(value) if whole and ("." not in text or value > 1) else value
 
 
 def add_parser(sub, parents) -> None:
@@ -123,8 +128,11 @@ def _parse_bounds(items) -> dict:
 def options_from(args):
     """Preset (if any) merged with the flags, checked against the model's parameters."""
     from .. import get_model
-    from ..config import FitOptions, load_config
+    from ..config import FitOptions, check_fit_options, load_config
 
+    check_fit_options({"cutoff": args.cutoff, "subsample": args.subsample, "seed": args.seed,
+                       "multistart": args.multistart}, lambda key: f"--{key}")
+    _check_mcmc_ranges(args)
     flags = FitOptions(
         model=args.model, loss=args.loss, solver=args.solver, cutoff=args.cutoff,
         subsample=args.subsample, seed=args.seed, multistart=args.multistart,
@@ -143,14 +151,24 @@ def options_from(args):
     if not models or len({m.name for m in models}) != len(models):
         raise UsageError(f"--model {options.model!r}: give distinct model names separated by "
                          f"commas, e.g. --model ggx,gtr,disney")
-    if options.cutoff is not None and not 0 < options.cutoff <= 90:
-        raise UsageError(f"--cutoff {options.cutoff:g}: give degrees in (0, 90]")
+    check_no_conflict(flags.init, flags.fixed)
     for model in models:
         check_params(model, flags.init, "--init")
         check_params(model, flags.fixed, "--fix")
         options.check_params(model)
     _check_names(options)
     return models, options
+
+
+def _check_mcmc_ranges(args) -> None:
+    from ..config import MAX_CHAIN_VALUES, POSTERIOR_OPTION_RANGES, check_fit_options
+
+    values = {k: getattr(args, k, None) for k in POSTERIOR_OPTION_RANGES}
+    check_fit_options(values, lambda key: f"--{key.replace('_', '-')}", POSTERIOR_OPTION_RANGES)
+    walkers, steps = values["walkers"] or 32, values["steps"] or 1
+    if walkers * steps * 64 > MAX_CHAIN_VALUES:  # 64: a generous number of parameters
+        raise UsageError(f"--walkers {walkers} x --steps {steps} is a chain of more than "
+                         f"{MAX_CHAIN_VALUES:,} values; use fewer walkers or steps")
 
 
 def _check_names(options) -> None:
@@ -175,30 +193,34 @@ def run(args) -> int:
     from ..posterior import cli_support as mcmc
 
     mcmc_paths = [p for p in mcmc.output_paths(args).values() if p]
-    check_outputs([out, table] + _plot_paths(plot) + mcmc_paths, args.force)
-    data = read_input(args.file)
-    progress = Progress(quiet=args.quiet)
-    progress(f"fitting {model.name} to {args.file}")
-    try:
-        result = fit(data, model, **options.fit_kwargs(), throw=False,
-                     progress=progress if progress.enabled else None)
-        result = dataclasses.replace(result, message=cli_words(result.message), provenance={
-            **result.provenance, "command": "brdffit fit", "config": list(options.sources)})
-        post = _posterior(data, result, args, options, progress, mcmc)
-    except BrdffitError as exc:  # the library's advice, in flags
-        raise UsageError(cli_words(str(exc))) from exc
-    text = mcmc.combined_json(result, post) if post else result.to_json()
-    lines = [result.summary()] + ([cli_words(post.summary())] if post else [])
-    print(text if args.json else "\n".join(lines))
-    if out:
-        write_text(out, text + "\n")
-    if table:
-        _write_table(result, table, progress)
-    if plot:
-        from .plotting import write_figures
+    with check_outputs([out, table] + _plot_paths(plot) + mcmc_paths, args.force,
+                       sizes={table: _MERL_BYTES} if table else None) as outputs:
+        data = read_input(args.file)
+        progress = Progress(quiet=args.quiet)
+        progress(f"fitting {model.name} to {args.file}")
+        try:
+            result = fit(data, model, **options.fit_kwargs(), throw=False,
+                         progress=progress if progress.enabled else None)
+            result = dataclasses.replace(result, message=cli_words(result.message), provenance={
+                **result.provenance, "command": "brdffit fit", "config": list(options.sources)})
+            post = _posterior(data, result, args, options, progress, mcmc, outputs)
+        except BrdffitError as exc:  # the library's advice, in flags
+            raise UsageError(cli_words(str(exc))) from exc
+        text = mcmc.combined_json(result, post) if post else result.to_json()
+        if out:
+            outputs.write(out, lambda tmp: write_text(tmp, text + "\n"))
+        if table:
+            _write_table(result, outputs, table, progress)
+        if plot:
+            from .plotting import write_figures
 
-        write_figures(data, plot, model=model, params=result.params,
-                      converged=result.success, progress=progress)
+            outputs.write(plot, lambda base: write_figures(
+                data, base, model=model, params=result.params, converged=result.success,
+                progress=progress), base=True)
+        lines = [result.summary()] + ([cli_words(post.summary())] if post else [])
+        print(text if args.json else "\n".join(lines))
+        sys.stdout.flush()  # a failed stdout publishes nothing
+        outputs.publish()
     if not result.success:
         print(f"brdffit fit: warning: the fit did not converge ({result.message}); outputs "
               f"were written and marked success=false", file=sys.stderr)
@@ -209,14 +231,18 @@ def run(args) -> int:
 def _run_several(args, models, options) -> int:
     """Fit each of ``models`` to the same cells; print the comparison (best first) and the
     summaries; ``--out`` gets ``{"results": [...]}`` in the same order."""
+    if args.plot or args.table or args.mcmc:
+        raise UsageError("--plot, --table and --mcmc take one model; fit the chosen model "
+                         "again with --model NAME")
+    with check_outputs([args.out], args.force) as outputs:
+        return _fit_several(args, models, options, outputs)
+
+
+def _fit_several(args, models, options, outputs) -> int:
     import json
 
     from ..api import fit
 
-    if args.plot or args.table or args.mcmc:
-        raise UsageError("--plot, --table and --mcmc take one model; fit the chosen model "
-                         "again with --model NAME")
-    check_outputs([args.out], args.force)
     data = read_input(args.file)
     progress = Progress(quiet=args.quiet)
     results = []
@@ -236,7 +262,9 @@ def _run_several(args, models, options) -> int:
         print(comparison(results))
         print("\n\n".join(r.summary() for r in results))
     if args.out:
-        write_text(args.out, text + "\n")
+        outputs.write(args.out, lambda tmp: write_text(tmp, text + "\n"))
+    sys.stdout.flush()  # a failed stdout publishes nothing
+    outputs.publish()
     failed = [r.model_name for r in results if not r.success]
     if failed:
         print(f"brdffit fit: warning: {', '.join(failed)} did not converge; see the summaries",
@@ -260,7 +288,7 @@ def comparison(results) -> str:
     return "\n".join(rows)
 
 
-def _posterior(data, result, args, options, progress, mcmc):
+def _posterior(data, result, args, options, progress, mcmc, outputs):
     """``--mcmc``: emcee around the converged fit (see :mod:`brdffit.posterior.cli_support`)."""
     if not args.mcmc:
         return None
@@ -269,7 +297,7 @@ def _posterior(data, result, args, options, progress, mcmc):
               "so there is no optimum to start the walkers from", file=sys.stderr)
         return None
     progress("sampling the posterior with emcee")
-    post, _files, notes = mcmc.run_mcmc(data, result, args, options, atomic_write)
+    post, _files, notes = mcmc.run_mcmc(data, result, args, options, outputs.write)
     for note in notes:
         print(f"brdffit fit: warning: {cli_words(note)}", file=sys.stderr)
     return post
@@ -283,8 +311,12 @@ def _plot_paths(plot):
     return figure_paths(plot)
 
 
-def _write_table(result, path, progress) -> None:
+def _write_table(result, outputs, path, progress) -> None:
     from data_formats.merl import write_merl
 
     progress(f"rendering the fitted model into {path}")
-    write_merl(path, result.render_merl(name=Path(path).stem))  # atomic itself
+    rendered = result.render_merl(name=Path(path).stem)
+    outputs.write(path, lambda tmp: write_merl(tmp, rendered))
+
+
+_MERL_BYTES = 34_992_012  # a table rendered over the MERL grid

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from ._common import UsageError, check_outputs, read_input
 
 
@@ -51,33 +53,80 @@ def write_figures(data, path, *, model=None, params=None, converged=True, progre
     return diagnostics(data, model, params, path=path, error=error)
 
 
+#: The largest result JSON read by ``--fit`` (results are a few kilobytes).
+MAX_RESULT_BYTES = 16 << 20
+
+
 def _read_result(path):
+    """A :class:`FitResult` from ``--fit``, its model and parameters checked against the registry."""
+    p = Path(path)
+    if not p.exists():
+        raise UsageError(f"--fit {path}: no such file (write one with `brdffit fit ... --out`)")
+    from data_formats._files import NotRegularFileError, open_regular
+
+    try:
+        with open_regular(p, "rb") as fh:
+            raw = fh.read(MAX_RESULT_BYTES + 1)
+    except NotRegularFileError as exc:
+        raise UsageError(f"--fit {exc}") from None
+    if len(raw) > MAX_RESULT_BYTES:
+        raise UsageError(f"--fit {path}: larger than {MAX_RESULT_BYTES:,} bytes; not a brdffit "
+                         f"result")
+    result = _parse_result(path, raw)
+    _check_result_params(path, result)
+    return result
+
+
+def _parse_result(path, raw: bytes):
+    import json
+
     from ..fitting import FitResult
 
-    p = Path(path)
-    if not p.is_file():
-        raise UsageError(f"--fit {path}: no such file (write one with `brdffit fit ... --out`)")
     try:
-        return FitResult.from_json(p.read_text(encoding="utf-8"))
-    except (ValueError, KeyError, TypeError) as exc:
-        raise UsageError(f"--fit {path}: not a brdffit result ({type(exc).__name__}: {exc})") \
-            from None
+        if not isinstance(json.loads(raw.decode("utf-8")), dict):
+            raise ValueError("the JSON is not an object")
+        return FitResult.from_json(raw.decode("utf-8"))
+    except (ValueError, KeyError, TypeError, AttributeError, IndexError, RecursionError) as exc:
+        raise UsageError(f"--fit {path}: not a brdffit result ({type(exc).__name__}: "
+                         f"{_short(exc)}); write one with `brdffit fit ... --out`") from None
+
+
+def _short(exc) -> str:
+    text = " ".join(str(exc).split())
+    return text if len(text) <= 200 else text[:197] + "..."
+
+
+def _check_result_params(path, result) -> None:
+    """Model name known; every parameter known, of its declared shape, finite, in bounds."""
+    from .. import get_model
+    from ..errors import BrdffitError
+
+    try:
+        model = get_model(result.model_name)
+        for name, value in dict(result.params).items():
+            value = model.param(name).check_bounds(value)
+            if not np.all(np.isfinite(value)):
+                raise BrdffitError(f"parameter {name!r}={value!r} is not finite")
+    except (BrdffitError, TypeError, ValueError) as exc:
+        raise UsageError(f"--fit {path}: {_short(exc)}") from None
 
 
 def run(args) -> int:
     from ._common import Progress
 
     result = _read_result(args.fit) if args.fit else None
-    check_outputs(figure_paths(args.output), args.force)
-    data = read_input(args.file)
-    model = params = None
-    if result is not None:
-        from .. import get_model
+    written = figure_paths(args.output)
+    with check_outputs(written, args.force) as outputs:
+        data = read_input(args.file)
+        model = params = None
+        if result is not None:
+            from .. import get_model
 
-        model, params = get_model(result.model_name), result.params
-    written = write_figures(data, args.output, model=model, params=params,
-                            converged=result is None or result.success,
-                            progress=Progress(args.quiet))
+            model, params = get_model(result.model_name), result.params
+        outputs.write(args.output, lambda base: write_figures(
+            data, base, model=model, params=params, converged=result is None or result.success,
+            progress=Progress(args.quiet)), base=True)
+        outputs.publish()
     if not args.quiet:
         print("wrote " + ", ".join(str(p) for p in written))
     return 0

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ._common import UsageError, check_outputs, check_params, parse_assignments
@@ -34,9 +36,13 @@ def add_parser(sub, parents) -> None:
     p.set_defaults(run=run)
 
 
+def _check_noise(sigma) -> None:
+    if not (np.isfinite(sigma) and sigma >= 0):
+        raise UsageError(f"--noise {sigma:g}: the noise level must be a finite number ≥ 0")
+
+
 def _noisy(rgb, sigma, rng):
-    if sigma < 0:
-        raise UsageError(f"--noise {sigma:g}: the noise level must be ≥ 0")
+    _check_noise(sigma)
     if sigma == 0:
         return rgb
     return np.clip(rgb * (1.0 + sigma * rng.standard_normal(rgb.shape)), 0.0, None)
@@ -72,13 +78,20 @@ def synthesize_table(model, params, *, noise=0.0, seed=0, name=""):
                       name=name)
 
 
+def _check_samples(n) -> None:
+    from data_formats.samplelist import MAX_SAMPLES
+
+    if not 0 < n <= MAX_SAMPLES:
+        raise UsageError(f"--samples {n}: give a number of direction pairs in [1, {MAX_SAMPLES}] "
+                         f"(the sample-list readers' limit)")
+
+
 def synthesize_samples(model, params, n, *, noise=0.0, seed=0, name=""):
     from data_formats import SampleSet
 
     from ..models.evaluate import evaluate_model
 
-    if n <= 0:
-        raise UsageError(f"--samples {n}: give a positive number of direction pairs")
+    _check_samples(n)
     rng = np.random.default_rng(seed)
     wi, wo = random_pairs(rng, n)
     rgb = _noisy(evaluate_model(model, params, wi, wo), noise, rng)
@@ -89,23 +102,33 @@ def run(args) -> int:
     from .. import get_model
     from ._common import INPUT_SUFFIXES
 
+    from ..config import check_fit_options
+
     model = get_model(args.model)
     params = check_params(model, parse_assignments(args.param, "--param"), "--param")
-    (out,) = check_outputs([args.output], args.force)
+    check_fit_options({"seed": args.seed}, lambda key: f"--{key}")
+    _check_noise(args.noise)
+    if Path(args.output).suffix.lower() != ".binary":
+        _check_samples(args.samples)
+    out = Path(args.output)
     suffix = out.suffix.lower()
     if suffix not in INPUT_SUFFIXES:
         raise UsageError(f"{out}: unknown output format {suffix!r}; use .binary, .csv or .npz")
-    if suffix == ".binary":
-        from data_formats.merl import write_merl
+    size = 34_992_012 if suffix == ".binary" else 200 * args.samples
+    with check_outputs([out], args.force, {out: size}) as outputs:
+        if suffix == ".binary":
+            from data_formats.merl import write_merl
 
-        table = synthesize_table(model, params, noise=args.noise, seed=args.seed, name=out.stem)
-        write_merl(out, table)  # atomic itself (data_formats._atomic)
-    else:
-        from data_formats.samplelist import write_samples
+            table = synthesize_table(model, params, noise=args.noise, seed=args.seed,
+                                     name=out.stem)
+            outputs.write(out, lambda tmp: write_merl(tmp, table))
+        else:
+            from data_formats.samplelist import write_samples
 
-        samples = synthesize_samples(model, params, args.samples, noise=args.noise,
-                                     seed=args.seed, name=out.stem)
-        write_samples(out, samples)  # atomic itself
+            samples = synthesize_samples(model, params, args.samples, noise=args.noise,
+                                         seed=args.seed, name=out.stem)
+            outputs.write(out, lambda tmp: write_samples(tmp, samples))
+        outputs.publish()
     if not args.quiet:
         shown = ", ".join(f"{k}={v}" for k, v in params.items()) or "defaults"
         print(f"wrote {out} ({model.name}: {shown})")

@@ -386,6 +386,10 @@ def fit(
         covariance: ``"sandwich"`` (default, robust to heteroscedastic residuals) or ``"gn"``
             (classical ``s² (JᵀJ)⁻¹``); see :mod:`brdffit.fitting.statistics`.
     """
+    from ..config import check_fit_options
+
+    check_fit_options(dict(rtol=rtol, atol=atol, ftol=ftol, max_steps=max_steps,
+                           multistart=multistart, seed=seed, subsample=subsample, cutoff=cutoff))
     if covariance not in ("sandwich", "gn"):
         raise UnknownNameError("covariance", str(covariance), ["sandwich", "gn"])
     if precision not in (None, "float32", "float64"):
