@@ -22,7 +22,9 @@ from brdffit.export.approximate import approximate
 from brdffit.models.evaluate import evaluate_model
 from data_formats.merl import read_merl, synthesize, write_merl
 
-SHAPE = (45, 45, 90)  # a quarter-resolution MERL grid: 182k cells, enough for 20k-cell fits
+SHAPE = (45, 45, 90)  # a quarter-resolution MERL grid: 182k cells
+#: Every fit here uses this many cells: the fitter compiles once per model and shape.
+CELLS = 5000
 
 
 def _pairs(n, seed=0):
@@ -124,7 +126,7 @@ def test_unknown_target_lists_the_valid_ones():
 def test_approximating_a_native_model_by_itself_recovers_it():
     """The approximation machinery is exact where it can be: gltf-pbr fitted to gltf-pbr."""
     truth = GLTF_CASES[0]
-    res = approximate("gltf-pbr", truth, "gltf-pbr", n=8000)
+    res = approximate("gltf-pbr", truth, "gltf-pbr", n=10000, subsample=CELLS)
     assert res.success and res.metrics["rel_error"] < 1e-8
     np.testing.assert_allclose(res.params["base_color"], truth["base_color"], rtol=1e-6)
     assert res.params["roughness"] == pytest.approx(truth["roughness"], rel=1e-6)
@@ -149,7 +151,7 @@ RECOVERY = {
 @pytest.mark.parametrize("name", sorted(RECOVERY))
 def test_native_model_recovered_from_a_synthetic_table(tmp_path, name):
     truth = RECOVERY[name]
-    res = brdffit.fit(_table(tmp_path, name, truth), name, subsample=20000)
+    res = brdffit.fit(_table(tmp_path, name, truth), name, subsample=CELLS)
     model = brdffit.get_model(name)
     x = model.flatten(truth)
     assert res.success and res.cost < 1e-12 and not res.at_bound
@@ -161,7 +163,7 @@ def ggx_result(tmp_path_factory):
     """A ggx fit (Lambert + Schlick GGX: no exact counterpart in any renderer), written to disk."""
     tmp = tmp_path_factory.mktemp("ggx")
     truth = dict(diffuse=[0.02] * 3, f0=[0.9, 0.6, 0.3], alpha=0.08)
-    res = brdffit.fit(_table(tmp, "ggx", truth), "ggx", subsample=5000)
+    res = brdffit.fit(_table(tmp, "ggx", truth), "ggx", subsample=CELLS)
     path = tmp / "ggx.json"
     res.to_json(path)
     return res, path
@@ -172,14 +174,14 @@ def test_result_export_refuses_then_approximates_with_a_warning(ggx_result):
     with pytest.raises(NoExactCounterpart, match="gltf-pbr"):
         res.export("gltf")
     with pytest.warns(ApproximationWarning, match="gltf-pbr approximates ggx: .*rmse_log"):
-        doc = res.export("gltf", approximate=True, n=8000)
+        doc = res.export("gltf", approximate=True, n=10000, subsample=CELLS)
     pbr = doc["materials"][0]["pbrMetallicRoughness"]
     assert pbr["metallicFactor"] > 0.8  # a metal stays a metal
     assert "approximation error rmse_log" in doc["materials"][0]["extras"]["brdffit"]
 
 
 def test_cli_export_exact_and_refusal(tmp_path, ggx_result, capsys):
-    res = brdffit.fit(_table(tmp_path, "gltf-pbr", GLTF_CASES[1]), "gltf-pbr", subsample=5000)
+    res = brdffit.fit(_table(tmp_path, "gltf-pbr", GLTF_CASES[1]), "gltf-pbr", subsample=CELLS)
     res.to_json(tmp_path / "r.json")
     assert main(["export", str(tmp_path / "r.json"), "--to", "gltf", "-o", str(tmp_path / "m.gltf")]) == 0
     doc = json.loads((tmp_path / "m.gltf").read_text())

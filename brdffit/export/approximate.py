@@ -55,13 +55,13 @@ def _starts(native, features) -> list[dict]:
 
 
 def approximate(model, params, native, *, n: int = 40000, cutoff: float = 80.0, seed: int = 0,
-                loss: str = "log", free=()):
+                loss: str = "log", free=(), subsample: int | None = 20000):
     """Fit the native model ``native`` to ``model`` with ``params``; returns its ``FitResult``.
 
     ``result.params`` are the closest native parameters (in the loss's sense), ``result.metrics``
     the approximation's error, ``result.table`` names the approximated model. ``free`` names
     parameters of :data:`HELD` to fit as well (e.g. ``("clearcoat", "clearcoat_gloss")`` for a
-    coated source).
+    coated source). ``subsample`` cells of the ``≈ 0.6 n`` pairs kept are fitted (all if fewer).
     """
     from ..fitting import fit
     from ..fitting.init import measure
@@ -78,7 +78,8 @@ def approximate(model, params, native, *, n: int = 40000, cutoff: float = 80.0, 
     best = None
     for init in _starts(native, measure(rgb, wi, wo, np.ones(len(rgb), bool))):
         init = {k: v for k, v in init.items() if k not in held}
-        res = fit(data, native, loss=loss, init=init, fixed=held or None, throw=False)
+        res = fit(data, native, loss=loss, init=init, fixed=held or None, throw=False,
+                  subsample=subsample if subsample and subsample < len(rgb) else None, seed=seed)
         if best is None or res.cost < best.cost:
             best = res
     return best
