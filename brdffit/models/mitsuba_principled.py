@@ -99,6 +99,7 @@ def principled_fresnel(base_color, metallic, spec_tint, eta, cos_d):
 
 
 def main_specular(p, wi, wo, wm):
+    """``F_p D G / (4 cos θi cos θo)``, zero where ``F_diel = 0`` (``spec_reflect_active``)."""
     ax, ay = dist_alphas(p["roughness"], p["anisotropic"])
     ndf = GGX(ax, ay)
     cos_d = dot(wi, wm)
@@ -116,6 +117,7 @@ def gtr1(alpha, cos_h):
 
 
 def clearcoat(p, wi, wo, wm):
+    """``0.25 clearcoat F_cc D_cc G_cc`` (no ``4 cos θi cos θo``: see the module's warning)."""
     alpha = 0.1 + (0.001 - 0.1) * p["clearcoat_gloss"]
     g = G2_separable(GGX(CLEARCOAT_G_ALPHA), wi, wo, wm)
     f = schlick(jnp.asarray(CLEARCOAT_R0), dot(wi, wm))[..., 0]
@@ -123,6 +125,7 @@ def clearcoat(p, wi, wo, wm):
 
 
 def diffuse_and_sheen(p, wi, wo, wm):
+    """``(1 − m) C/π lerp(f_diff + f_retro, f_ss, flatness) + sheen (1 − m) w(c_d) C_sheen``."""
     ci, co = cos_theta(wi), cos_theta(wo)
     fi, fo = schlick_weight(ci), schlick_weight(co)
     cos_d = dot(wm, wo)
