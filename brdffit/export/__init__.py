@@ -159,7 +159,8 @@ def export_payload(result, to: str, *, approximate: bool = False, **approx_optio
     out = export(result, to, approximate=approximate, **approx_options)
     if out.approximation is not None:
         m = out.approximation.metrics
+        source = result[0] if isinstance(result, tuple) else result.model_name
         warnings.warn(ApproximationWarning(
-            f"{out.model_name} approximates {result.model_name}: "
+            f"{out.model_name} approximates {source}: "
             + ", ".join(f"{k} {v:.4g}" for k, v in m.items())), stacklevel=3)
     return out.payload
