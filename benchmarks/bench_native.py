@@ -14,8 +14,11 @@ What it does:
    evaluated on a quarter-resolution MERL grid in memory, never written): fits brdffit's
    models (``ggx``, ``two-lobe-ggx``, ``disney``) and the native ones (``mitsuba-principled``,
    ``mitsuba-roughconductor``, ``gltf-pbr``) with their presets' fixed parameters, on a seeded
-   subsample, and prints each fit's ``rmse_log`` and ``rel_error`` and the ratio of each native
-   model's ``rmse_log`` to the best brdffit model's: what rendering in each renderer gives up.
+   subsample, and prints each fit's ``rmse_log`` and ``rel_error`` (``!``: the solver did not
+   converge) and the ratio of each native model's ``rmse_log`` to the best brdffit model's: what
+   rendering in each renderer gives up. ``rmse_log`` (the fits' loss, ``log(1 + f cos θi)``) is
+   dominated by the highlight; ``rel_error`` (mean relative error per cell) by the dark diffuse
+   cells: a conductor without a diffuse term can win the first and lose the second.
 
 The machine may be shared: the script prints the load average next to the timings.
 """
@@ -94,7 +97,7 @@ def realistic(materials, subsample):
     from data_formats.merl import synthesize
 
     render = _load(REALISTIC / "render.py", "realistic_render")
-    print(f"  {'material':24s} " + " ".join(f"{m:>22s}" for m in OURS + NATIVE))
+    print(f"  {'material':24s} " + " ".join(f"{m:>23s}" for m in OURS + NATIVE))
     for mat in materials:
         table = synthesize(lambda wi, wo: render.brdf(mat, wi, wo), name=mat, shape=(45, 45, 90))
         samples = table.to_samples()
@@ -113,7 +116,8 @@ def realistic(materials, subsample):
             row[name] = best
         ours = min(OURS, key=lambda n: row[n].metrics["rmse_log"])
         cells = " ".join(f"{row[n].metrics['rmse_log']:9.4f} ({row[n].metrics['rel_error']:.3f})"
-                         + ("*" if n == ours else " ") for n in OURS + NATIVE)
+                         + ("*" if n == ours else " ") + (" " if row[n].success else "!")
+                         for n in OURS + NATIVE)
         ratio = ", ".join(f"{n} x{row[n].metrics['rmse_log'] / row[ours].metrics['rmse_log']:.2f}"
                           for n in NATIVE)
         print(f"  {mat:24s} {cells}\n  {'':24s} rmse_log against {ours}: {ratio}", flush=True)
