@@ -85,7 +85,8 @@ def _png_size(path):
 
 
 def test_help_of_every_command(capsys):
-    for command in ([], ["fit"], ["info"], ["synth"], ["plot"], ["models"], ["demo"]):
+    for command in ([], ["fit"], ["info"], ["synth"], ["plot"], ["models"], ["demo"], ["export"],
+                    ["render"]):
         assert main([*command, "--help"]) == 0
         out = capsys.readouterr().out
         assert out.startswith("usage: brdffit") and ("--force" in out or not command or

@@ -52,6 +52,14 @@ WHITE = {
     "ggx-ms": dict(diffuse=0.0, f0=1.0, alpha=0.8),
     # Coupled diffuse (RTR 9.65) at rho = 1: total albedo exactly 1, a tight bound.
     "ggx-coupled": dict(diffuse=1.0, f0=1.0, alpha=0.5),
+    # Renderer-native models. Mitsuba's principled at metallic = 1, white base: F = 1, separable
+    # G. The conductors at the bounds' most reflective corner (eta 0.02, k 12: F0 = 0.9994).
+    "mitsuba-principled": dict(base_color=1.0, metallic=1.0, roughness=0.5, anisotropic=0.8),
+    "mitsuba-roughconductor": dict(alpha=0.3, eta=0.02, k=12.0),
+    "mitsuba-roughconductor-aniso": dict(alpha_u=0.2, alpha_v=0.5, eta=0.02, k=12.0),
+    "mitsuba-roughconductor-beckmann": dict(alpha=0.3, eta=0.02, k=12.0),
+    "mitsuba-roughconductor-tint": dict(alpha=0.3, specular_reflectance=1.0),
+    "gltf-pbr": dict(base_color=1.0, metallic=1.0, roughness=0.5),
 }
 
 

@@ -170,6 +170,17 @@ class FitResult:
         return synthesize(lambda wi, wo: evaluate_model(fitted.model, fitted.params, wi, wo),
                           name=name or f"{self.model_name}-fit", shape=shape or MERL_SHAPE)
 
+    def export(self, to: str, *, approximate: bool = False, **options):
+        """The fitted material for a renderer: ``"mitsuba-dict"`` (what ``mitsuba.load_dict``
+        takes), ``"mitsuba-xml"`` (a ``<bsdf>`` element) or ``"gltf"`` (a glTF 2.0 document).
+
+        Delegates to :func:`brdffit.export.export_payload` (the parameter mapping and the
+        ``approximate`` option are documented in :mod:`brdffit.export`).
+        """
+        from ..export import export_payload
+
+        return export_payload(self, to, approximate=approximate, **options)
+
     # -- reporting ------------------------------------------------------------------------------
     def summary(self) -> str:
         """A few readable lines: verdict, parameters ± standard errors, metrics."""

@@ -173,10 +173,27 @@ def register(model: Model) -> Model:
     return model
 
 
+#: Functions ``name -> Model | None`` consulted by :func:`get_model` for a name not (yet)
+#: registered: a family of variants (e.g. Mitsuba's ``roughconductor`` options) registers the
+#: common ones at import and builds the others on first use by name.
+_FACTORIES: list[Callable] = []
+
+
+def register_factory(factory: Callable) -> Callable:
+    """Let ``factory(name)`` build (and register) models on demand; returns ``factory``."""
+    _FACTORIES.append(factory)
+    return factory
+
+
 def get_model(model) -> Model:
     """A :class:`Model` from a registry name (or the model itself)."""
     if isinstance(model, Model):
         return model
+    if model not in _REGISTRY:
+        for factory in _FACTORIES:
+            built = factory(model)
+            if built is not None:
+                return built
     try:
         return _REGISTRY[model]
     except KeyError:

@@ -1,0 +1,58 @@
+"""``brdffit export RESULT.json --to mitsuba-xml|mitsuba-dict|gltf -o OUT``: a renderer material.
+
+The result's model must be the target's own BSDF (a renderer-native model: ``mitsuba-principled``,
+``mitsuba-roughconductor*``, ``gltf-pbr``); otherwise the command fails naming the native model
+to fit, unless ``--approximate``, which fits that native model to the fitted one and prints the
+approximation's error in the metrics of a fit. The mapping is documented in
+:mod:`brdffit.export`.
+"""
+
+from __future__ import annotations
+
+from ._common import check_outputs, write_text
+from .plotting import _read_result
+
+TARGETS = ("mitsuba-xml", "mitsuba-dict", "gltf")
+
+
+def add_parser(sub, parents) -> None:
+    p = sub.add_parser(
+        "export",
+        parents=parents,
+        allow_abbrev=False,
+        help="write a fitted material for Mitsuba 3 (XML, load_dict JSON) or glTF 2.0",
+        description="Write the material of a `brdffit fit --out` result for a renderer: "
+        "mitsuba-xml (a <bsdf> element for a Mitsuba 3 scene), mitsuba-dict (JSON of the dict "
+        "mitsuba.load_dict takes) or gltf (a glTF 2.0 document with one metallic-roughness "
+        "material). Only renderer-native models export exactly; --approximate fits the native "
+        "model to any other and reports the approximation's error.",
+    )
+    p.add_argument("result", metavar="RESULT.json", help="a result written by `brdffit fit --out`")
+    p.add_argument("--to", required=True, choices=TARGETS, help="the target format")
+    p.add_argument("--output", "-o", required=True, metavar="OUT", help="the file to write")
+    p.add_argument("--approximate", action="store_true",
+                   help="for a model with no exact counterpart: fit the target's native model to "
+                   "it and report that approximation's error")
+    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    import time
+
+    from ..export import export
+
+    check_outputs([args.output], args.force)
+    result = _read_result(args.result)
+    start = time.perf_counter()
+    out = export(result, args.to, approximate=args.approximate)
+    write_text(args.output, out.text())
+    seconds = time.perf_counter() - start
+    if out.approximation is not None:
+        m = out.approximation.metrics
+        print(f"{out.model_name} approximates the {result.model_name} fit "
+              f"({'converged' if out.approximation.success else 'NOT converged'}): "
+              + ", ".join(f"{k} {v:.4g}" for k, v in m.items()))
+    if not args.quiet:
+        print(f"wrote {args.output} ({args.to}, {out.model_name}, {seconds:.2f} s)")
+    return 0

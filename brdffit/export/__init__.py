@@ -1,0 +1,166 @@
+r"""Export fitted materials to renderers: Mitsuba 3 (``load_dict`` dictionary, XML) and glTF 2.0.
+
+A result exports **exactly** only when its model *is* the target's BSDF: the renderer-native
+models (:mod:`brdffit.models.mitsuba_principled`, :mod:`~brdffit.models.mitsuba_roughconductor`,
+:mod:`~brdffit.models.gltf_pbr`) evaluate the renderer's own formula, term for term, so the
+exported material renders what was fitted (``tests/test_export_mitsuba.py`` checks that in
+Mitsuba itself, to float32 precision). Any other model (``ggx``, ``disney``, ...) raises
+:class:`NoExactCounterpart`, naming the native model to fit instead, unless
+``approximate=True``: then the native model is fitted *to the fitted model*
+(:func:`brdffit.export.approximate.approximate`) and that fit's metrics are the approximation's
+error.
+
+Parameter mapping (the one place it is written down)
+-----------------------------------------------------
+
+=====================================  ======================================================
+brdffit model / parameter              target
+=====================================  ======================================================
+``mitsuba-principled``                 Mitsuba ``<bsdf type="principled">``
+  ``base_color`` (RGB)                 ``base_color`` as ``rgb``
+  ``roughness``, ``anisotropic``,      same names, ``float``
+  ``metallic``, ``specular``,
+  ``spec_tint``, ``sheen``,
+  ``sheen_tint``, ``flatness``,
+  ``clearcoat``, ``clearcoat_gloss``
+  (not a parameter)                    ``spec_trans = 0`` (reflection only)
+``mitsuba-roughconductor[-beckmann]``  Mitsuba ``<bsdf type="roughconductor">``,
+``[-aniso][-tint]``                    ``distribution`` = ``ggx`` / ``beckmann``
+  ``alpha``                            ``alpha`` (isotropic variants)
+  ``alpha_u``, ``alpha_v``             ``alpha_u`` (tangent), ``alpha_v`` (bitangent)
+  ``eta``, ``k`` (RGB)                 ``eta``, ``k`` as ``rgb``
+  ``specular_reflectance`` (``-tint``) ``specular_reflectance`` as ``rgb``; ``eta = 0``,
+                                       ``k = 1`` (Mitsuba's defaults: ``F = 1``)
+``gltf-pbr``                           glTF 2.0 ``materials[0].pbrMetallicRoughness``
+  ``base_color`` (RGB, linear)         ``baseColorFactor`` ``[r, g, b, 1]``
+  ``metallic``                         ``metallicFactor``
+  ``roughness``                        ``roughnessFactor`` (``α = roughness²``)
+=====================================  ======================================================
+
+Targets: ``"mitsuba-dict"`` (a dict for ``mitsuba.load_dict``; written to a file as JSON),
+``"mitsuba-xml"`` (a ``<bsdf>`` element to paste into a ``<scene>``), ``"gltf"`` (a glTF 2.0
+JSON document with one material). Where to add one: a module in this package writing the
+payload, an entry in :data:`TARGETS` and in :data:`NATIVE_FOR`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import warnings
+
+from ..errors import BrdffitError, UnknownNameError
+from .gltf import gltf_document, params_from_gltf
+from .mitsuba import is_mitsuba_model, mitsuba_dict, mitsuba_xml
+
+__all__ = ["TARGETS", "NATIVE_FOR", "ApproximationWarning", "Exported", "NoExactCounterpart",
+           "export", "gltf_document", "mitsuba_dict", "mitsuba_xml", "params_from_gltf"]
+
+#: Export targets and the test "is this model the target's own BSDF?".
+TARGETS = {
+    "mitsuba-dict": is_mitsuba_model,
+    "mitsuba-xml": is_mitsuba_model,
+    "gltf": lambda name: name == "gltf-pbr",
+}
+#: The native model to fit (or to approximate with) for each target.
+NATIVE_FOR = {"mitsuba-dict": "mitsuba-principled", "mitsuba-xml": "mitsuba-principled",
+              "gltf": "gltf-pbr"}
+
+
+class NoExactCounterpart(BrdffitError):
+    """The model of a result is not the target renderer's BSDF (see :func:`export`)."""
+
+
+class ApproximationWarning(UserWarning):
+    """An export that went through ``approximate=True``; the message carries its error."""
+
+
+@dataclasses.dataclass
+class Exported:
+    """An exported material.
+
+    Attributes:
+        target: ``"mitsuba-dict"``, ``"mitsuba-xml"`` or ``"gltf"``.
+        payload: the dict (``mitsuba-dict``, ``gltf``) or XML text (``mitsuba-xml``).
+        model_name, params: the native model and parameters written.
+        approximation: the ``FitResult`` of the native model fitted to the source model when
+            ``approximate=True`` was needed, else ``None``; its ``metrics`` are the error.
+    """
+
+    target: str
+    payload: object
+    model_name: str
+    params: dict
+    approximation: object = None
+
+    def text(self) -> str:
+        """The file contents: JSON for the dict targets, the XML element for ``mitsuba-xml``."""
+        if isinstance(self.payload, str):
+            return self.payload
+        return json.dumps(self.payload, indent=2) + "\n"
+
+
+def _payload(target, model, params, note):
+    if target == "mitsuba-dict":
+        return mitsuba_dict(model, params)
+    if target == "mitsuba-xml":
+        return f"<!-- {note} -->\n" + mitsuba_xml(model, params)
+    doc = gltf_document(params)
+    doc["materials"][0]["extras"] = {"brdffit": note}
+    return doc
+
+
+def _no_counterpart(name, target, native):
+    return NoExactCounterpart(
+        f"model {name!r} has no exact counterpart in {target}: its formula is not the renderer's. "
+        f"Fit the native model instead (brdffit fit TABLE --model {native}; for metals also "
+        f"mitsuba-roughconductor) or pass --approximate (approximate=True) to fit {native} to "
+        f"the fitted {name} and report that approximation's error"
+        if target != "gltf" else
+        f"model {name!r} has no exact counterpart in glTF: fit {native} instead "
+        f"(brdffit fit TABLE --model {native}) or pass --approximate (approximate=True) to fit "
+        f"{native} to the fitted {name} and report that approximation's error")
+
+
+def export(result, to: str, *, approximate: bool = False, **approx_options) -> Exported:
+    """Export a :class:`~brdffit.fitting.FitResult` (or ``(model_name, params)``) to ``to``.
+
+    Raises :class:`NoExactCounterpart` when the model is not the target's BSDF and
+    ``approximate`` is false; with ``approximate=True`` it fits :data:`NATIVE_FOR` ``[to]`` to
+    the fitted model (options passed to :func:`~brdffit.export.approximate.approximate`).
+    """
+    from ..models import get_model
+
+    if to not in TARGETS:
+        raise UnknownNameError("export target", to, TARGETS)
+    name, params = (result if isinstance(result, tuple) else (result.model_name, result.params))
+    model = get_model(name)
+    source = getattr(result, "table", "") or "data"
+    approx = None
+    if not TARGETS[to](model.name):
+        if not approximate:
+            raise _no_counterpart(model.name, to, NATIVE_FOR[to])
+        from .approximate import approximate as fit_native
+
+        approx = fit_native(model, model.complete(params), NATIVE_FOR[to], **approx_options)
+        model, params = get_model(approx.model_name), approx.params
+        m = approx.metrics
+        note = (f"brdffit: {model.name} approximating a {name} fit of {source}; approximation "
+                f"error rmse_log {m['rmse_log']:.4g}, rel_error {m['rel_error']:.4g}")
+    else:
+        note = f"brdffit: {model.name} fit of {source}, exact"
+    full = model.complete(params)
+    return Exported(to, _payload(to, model, full, note), model.name, full, approx)
+
+
+def export_payload(result, to: str, *, approximate: bool = False, **approx_options):
+    """:func:`export`'s payload alone (what ``FitResult.export`` returns); an approximation is
+    reported as an :class:`ApproximationWarning` carrying its metrics."""
+    out = export(result, to, approximate=approximate, **approx_options)
+    if out.approximation is not None:
+        m = out.approximation.metrics
+        source = result[0] if isinstance(result, tuple) else result.model_name
+        warnings.warn(ApproximationWarning(
+            f"{out.model_name} approximates {source}: "
+            + ", ".join(f"{k} {v:.4g}" for k, v in m.items())), stacklevel=3)
+    return out.payload

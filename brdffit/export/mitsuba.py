@@ -1,0 +1,84 @@
+"""Mitsuba 3 materials from renderer-native fits: the ``load_dict`` dictionary and the XML element.
+
+Only the models whose formula is Mitsuba's own are written (:data:`MITSUBA_MODELS`); the
+parameter mapping is the table in :mod:`brdffit.export`. Values are written with full float64
+precision (Mitsuba reads them as float32).
+"""
+
+from __future__ import annotations
+
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from ..models.mitsuba_roughconductor import variant_of
+
+#: Principled parameters, written under the same names (``spec_trans`` is added as 0).
+PRINCIPLED_SCALARS = ("roughness", "anisotropic", "metallic", "specular", "spec_tint", "sheen",
+                      "sheen_tint", "flatness", "clearcoat", "clearcoat_gloss")
+
+
+def is_mitsuba_model(name: str) -> bool:
+    """True for the models that have an exact Mitsuba counterpart."""
+    return name == "mitsuba-principled" or variant_of(name) is not None
+
+
+def _rgb(v) -> dict:
+    return {"type": "rgb", "value": [float(x) for x in np.broadcast_to(np.asarray(v, float), (3,))]}
+
+
+def _principled(params) -> dict:
+    d = {"type": "principled", "base_color": _rgb(params["base_color"])}
+    d.update({k: float(params[k]) for k in PRINCIPLED_SCALARS})
+    d["spec_trans"] = 0.0
+    return d
+
+
+def _roughconductor(options, params) -> dict:
+    d = {"type": "roughconductor", "distribution": options["distribution"]}
+    if options["anisotropic"]:
+        d["alpha_u"], d["alpha_v"] = float(params["alpha_u"]), float(params["alpha_v"])
+    else:
+        d["alpha"] = float(params["alpha"])
+    if options["fresnel"] == "tint":
+        d["eta"], d["k"] = _rgb(0.0), _rgb(1.0)
+        d["specular_reflectance"] = _rgb(params["specular_reflectance"])
+    else:
+        d["eta"], d["k"] = _rgb(params["eta"]), _rgb(params["k"])
+    return d
+
+
+def mitsuba_dict(model, params) -> dict:
+    """What ``mitsuba.load_dict`` takes for ``model`` (a native :class:`Model`) with ``params``.
+
+    ``params`` must be complete (``model.complete(...)``). Raises ``ValueError`` for a model
+    without a Mitsuba counterpart (:func:`brdffit.export.export` turns that into advice).
+    """
+    if model.name == "mitsuba-principled":
+        return _principled(params)
+    options = variant_of(model.name)
+    if options is None:
+        raise ValueError(f"model {model.name!r} has no Mitsuba counterpart")
+    return _roughconductor(options, params)
+
+
+def _xml_value(name, value) -> str:
+    if isinstance(value, dict):  # an RGB texture
+        text = ", ".join(repr(float(x)) for x in value["value"])
+        return f'<rgb name={quoteattr(name)} value="{text}"/>'
+    if isinstance(value, str):
+        return f"<string name={quoteattr(name)} value={quoteattr(value)}/>"
+    return f'<float name={quoteattr(name)} value="{float(value)!r}"/>'
+
+
+def mitsuba_xml(model, params, *, bsdf_id: str = "brdffit-material") -> str:
+    """The ``<bsdf>`` element for a Mitsuba 3 scene (a fragment: paste it inside ``<scene>``).
+
+    The same values as :func:`mitsuba_dict`, each as ``<float>``, ``<rgb>`` or ``<string>``; the
+    element carries ``id=bsdf_id`` so shapes can ``<ref id="..."/>`` it.
+    """
+    d = mitsuba_dict(model, params)
+    lines = [f"<bsdf type={quoteattr(d['type'])} id={quoteattr(bsdf_id)}>"]
+    lines += [f"    {_xml_value(k, v)}" for k, v in d.items() if k != "type"]
+    lines.append("</bsdf>")
+    return "\n".join(lines) + "\n"

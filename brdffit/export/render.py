@@ -1,0 +1,78 @@
+"""A lit sphere rendered by Mitsuba 3 with an exported material (``brdffit render``).
+
+The scene is the one of :mod:`brdffit.plots.sphere`, built for Mitsuba: a unit sphere seen by an
+orthographic camera along ``−z`` (viewer at ``+z``, image ``x`` right, ``y`` up, the film
+covering ``[−1, 1]²``), one ``directional`` emitter of irradiance ``E`` arriving from
+``light_dir`` (the direction *towards* the light), plus a ``constant`` environment of radiance
+``L_env``. With ``L_env = 0`` a pixel's radiance is ``E · f_r(wi, wo) · max(0, cos θi)``, exactly
+:func:`brdffit.plots.sphere.render_sphere`'s, averaged over the pixel (box filter, ``spp``
+jittered samples); the environment adds the directional albedo times ``L_env``. Mitsuba's
+``direct`` integrator (one bounce; a sphere does not see itself) and the ``scalar_rgb`` variant,
+so no LLVM is needed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..plots.sphere import DEFAULT_LIGHT
+
+
+def _mitsuba():
+    try:
+        import mitsuba as mi
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        from ..errors import BrdffitError
+
+        raise BrdffitError(
+            "rendering needs Mitsuba 3: pip install 'brdffit[mitsuba]' (or pip install mitsuba)"
+        ) from exc
+    if mi.variant() is None:
+        mi.set_variant("scalar_rgb")
+    return mi
+
+
+def sphere_scene(bsdf: dict, *, size: int = 64, spp: int = 16, light_dir=DEFAULT_LIGHT,
+                 irradiance: float = 1.0, environment: float = 0.1, seed: int = 0) -> dict:
+    """The ``mitsuba.load_dict`` scene of the module docstring around the material ``bsdf``."""
+    mi = _mitsuba()
+    light = np.asarray(light_dir, float)
+    light = light / np.linalg.norm(light)
+    scene = {
+        "type": "scene",
+        "integrator": {"type": "direct"},
+        "sensor": {
+            "type": "orthographic",
+            "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 4], target=[0, 0, 0], up=[0, 1, 0]),
+            "film": {"type": "hdrfilm", "width": size, "height": size, "rfilter": {"type": "box"},
+                     "pixel_format": "rgb"},
+            "sampler": {"type": "independent", "sample_count": spp, "seed": seed},
+        },
+        "sphere": {"type": "sphere", "bsdf": bsdf},
+        "sun": {"type": "directional", "direction": [float(-v) for v in light],
+                "irradiance": {"type": "rgb", "value": float(irradiance)}},
+    }
+    if environment > 0:
+        scene["environment"] = {"type": "constant",
+                                "radiance": {"type": "rgb", "value": float(environment)}}
+    return scene
+
+
+def render_mitsuba(bsdf: dict, **options) -> np.ndarray:
+    """Linear RGB radiance ``(size, size, 3)`` (row 0 at the top) of :func:`sphere_scene`."""
+    mi = _mitsuba()
+    image = mi.render(mi.load_dict(sphere_scene(bsdf, **options)))
+    return np.array(image, dtype=float)[..., :3]
+
+
+def write_png(image: np.ndarray, path, *, exposure: float | None = None) -> float:
+    """Write ``image`` (linear radiance) as an sRGB PNG; returns the exposure used (by default
+    the 99.5th percentile of the lit pixels maps to 0.85, as the lit-sphere figure does)."""
+    import matplotlib.image
+
+    from ..plots import _style
+
+    if exposure is None:
+        exposure = _style.robust_exposure(image, 99.5, target=0.85)
+    matplotlib.image.imsave(str(path), np.clip(_style.srgb_tonemap(image, exposure), 0.0, 1.0))
+    return exposure
