@@ -1,27 +1,26 @@
 """``fit``: least-squares fitting of a registered model to a measured table, with optimistix.
 
 The pipeline: select cells (:mod:`.data`) → starting point (:mod:`.init`, or the user's) →
-unconstrained problem (:mod:`.transforms`, :mod:`.problem`) → optimistix solver on the
-Gauss–Newton normal form (:mod:`.normal_form`, :mod:`.solvers`) → covariance and metrics
+box coordinates of the free scalars (:mod:`.transforms`) → the problem (:mod:`.problem`) →
+bounded optimistix solver on the Gauss–Newton normal form (:mod:`.normal_form`,
+:mod:`.solvers`), in stages (:func:`_solve_one`) → covariance and metrics
 (:mod:`.statistics`) → :class:`~brdffit.fitting.result.FitResult`.
 
-Speed (issue 4; ``benchmarks/bench_fit.py``, ``ggx`` on a full 1.1 M-cell MERL table, 2 CPU
-cores: about 0.6 s warm where the first version took 13 s). Where the time went, and what
-took it away:
+The stages of one start, each beginning where the previous one ended:
 
-* **The full-table pass** (residual, ``JᵀJ``, ``Jᵀr``, the sandwich meat and the error sums,
-  block by block): 0.10–0.13 s. One forward-mode product per model parameter, not per scalar
-  (``Param.per_channel``; 3 instead of 7 for ``ggx``), and per-channel pair sums instead of a
-  mostly-zero Jacobian (:meth:`~brdffit.fitting.problem.Problem.block_sums`): 0.25 s → 0.10 s.
-  float32 evaluation (``precision="float32"``) makes a pass ~30 % cheaper but the fit took a
-  third pass (0.86 s against 0.67 s in float64, same benchmark): not the default.
-* **The number of passes**: on a selection of at least ``WARM_MIN_CHUNKS`` blocks each start is
-  first solved on ``WARM_FRACTION`` of the blocks (an evenly interleaved subset, same compiled
-  program; a fraction of a pass per step), then on the whole selection from there, and the
-  solve stops when the Gauss–Newton step is below 0.01 standard errors
-  (:class:`~brdffit.fitting.solvers.Lookahead`): 2 full passes (7 originally). The error
-  figures come from the last pass, not from a pass of their own.
-* **Preparation** (selecting and laying out the cells, the starting point): about 0.15 s.
+1. **scan** (``scan=True``, models with a lobe width): the start and copies with the lobe
+   widths shifted by factors of 3 and 8 either way, each solved loosely on ``SCAN_FRACTION``
+   of the blocks; the lowest cost wins (a real table can have several minima);
+2. **warm** (selections of at least ``WARM_MIN_CHUNKS`` blocks): the optimum on
+   ``WARM_FRACTION`` of the blocks, a fraction of a full pass per step;
+3. **full**: the whole selection, to the optimality test (:class:`~.solvers.Optimality`).
+
+After the first stage the solver's quadratic model is Newton's, ``JᵀJ`` plus the second-order
+term measured at the previous stage's end point (:meth:`.problem.Problem.block_second_order`
+on about 8,000 cells): on real materials the residual at the optimum is mostly model error and
+Gauss–Newton alone converges only linearly. The blocks are interleaved
+(:func:`.data.select`), so every leading subset is an even sample of the table. Measurements
+and the history of these choices: ``docs/design/fitting.md``.
 """
 
 from __future__ import annotations
