@@ -51,6 +51,13 @@ def make_result(*, model, problem, sel, out, u0, costs, x_start, fixed_idx, loss
             f"would still lower the cost by a fraction {omega:.2g} > ftol = {ftol:g}); try "
             f"another `init`, `multistart`, or a looser `ftol`."
         )
+    jtj_diag = np.diagonal(np.asarray(out["jtj"], float))
+    if optimal and not np.any(jtj_diag > 0):
+        optimal = False
+        status, message = "degenerate", (
+            "the cost does not depend on any free parameter at the end point (JᵀJ is zero): "
+            "the data determine nothing here; check the data's scale and the `loss`."
+        )
     success = optimal
     if throw and not success:
         raise FitError(f"{model.name} fit of {name or 'table'} did not converge: {message}")

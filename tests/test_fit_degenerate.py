@@ -1,0 +1,74 @@
+"""Honest verdicts on degenerate data: success only where the optimality test holds at a
+point the data determine, never at a start the cost cannot tell from any other point."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import brdffit
+from brdffit.errors import ConfigError
+from data_formats import SampleSet
+
+import realistic
+
+N = 5000
+LAMBERT = np.array([0.5, 0.4, 0.3])
+
+
+@pytest.fixture(scope="module")
+def cells():
+    return realistic.merl_cells("nickel", N, seed=3)
+
+
+def _table(cells, rgb, name):
+    return SampleSet(cells.wi, cells.wo, np.broadcast_to(rgb, cells.rgb.shape).copy(), cells.valid,
+                     name=name)
+
+
+def _cost_at(result, table, params):
+    """The linear or cosine cost of ``params`` on ``table``, written out in NumPy."""
+    model = brdffit.get_model(result.model_name)
+    pred = np.asarray(jax.jit(model.fn)(model.unflatten(jnp.asarray(model.flatten(params))),
+                                        jnp.asarray(table.wi), jnp.asarray(table.wo)))
+    ci, co = table.wi[:, 2:3], table.wo[:, 2:3]
+    if result.loss == "linear":
+        r = pred - table.rgb
+    else:
+        r = (pred - table.rgb) * ci * co
+    return 0.5 * np.sum(r**2)
+
+
+@pytest.mark.parametrize("loss", ["linear", "cosine"])
+def test_lambertian_table_fitted_by_ggx_ends_at_or_below_the_truth(cells, loss):
+    """ggx cannot be Lambertian (Schlick's grazing term stays at F0 = 0), so the optimum has
+    F0 and α on their bounds; a success must be at least as good as the Lambertian truth."""
+    table = _table(cells, LAMBERT / np.pi, "lambert")
+    res = brdffit.fit(table, "ggx", loss=loss, throw=False)
+    assert res.success and res.optimality <= 1e-9
+    truth = {"diffuse": LAMBERT, "f0": 0.0, "alpha": 1.0}
+    assert res.cost <= _cost_at(res, table, truth) * (1 + 1e-9)
+    assert res.params["f0"] == [0.0, 0.0, 0.0] and res.at_bound["alpha"] == "upper"
+    np.testing.assert_allclose(res.cost, _cost_at(res, table, res.params), rtol=1e-9)
+
+
+def test_a_cost_that_depends_on_nothing_is_not_a_success(cells):
+    """Values of 1e300 under the relative loss: every residual is -1 whatever the parameters,
+    the gradient and JᵀJ vanish; the start is a 'stationary point' the data do not determine."""
+    res = brdffit.fit(_table(cells, 1e300, "huge"), "ggx", loss="relative", throw=False)
+    assert not res.success and res.status == "degenerate"
+    assert "determine nothing" in res.message
+
+
+def test_an_all_zero_table_ends_on_the_bounds_it_belongs_on(cells):
+    res = brdffit.fit(_table(cells, 0.0, "zero"), "ggx", loss="linear", throw=False)
+    assert res.success
+    assert res.params["diffuse"] == [0.0, 0.0, 0.0] and res.params["f0"] == [0.0, 0.0, 0.0]
+    assert res.at_bound["alpha"] == "upper"  # the broadest lobe has the least grazing term
+
+
+@pytest.mark.parametrize("option", [dict(rtol=9223372036854775807), dict(ftol=2.0),
+                                    dict(max_steps=0), dict(multistart=-1)])
+def test_absurd_tolerances_are_refused_before_any_work(cells, option):
+    with pytest.raises(ConfigError, match="must be"):
+        brdffit.fit(cells, "ggx", **option)
