@@ -151,6 +151,9 @@ def fit(table, model, *, progress=None, throw: bool = True, **options):
             f"brdffit.fit() got unknown option(s) {', '.join(unknown)}; valid options: "
             f"{', '.join(sorted(_fit_defaults()))}, progress, throw"
         )
+    from .config import check_fit_options
+
+    check_fit_options(options)  # before the input is touched
     data, path = load(table)
     solve_options, tied = options, {}
     if is_monochrome(data):

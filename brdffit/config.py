@@ -83,7 +83,7 @@ FIT_OPTION_RANGES = {
     "max_steps": (True, 1, 100_000, True, "an integer in [1, 100000]"),
     "rtol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
     "atol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
-    "ftol": (False, 0.0, 1.0, False, "a number in (0, 1)"),
+    "ftol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
 }
 #: Ranges of the posterior-sampling options (``brdffit fit --mcmc``), checked the same way.
 #: The chain holds ``walkers * steps * parameters`` doubles: 10^4 x 10^5 x 10 would be 80 GB,

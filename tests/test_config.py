@@ -184,7 +184,7 @@ def test_bounds_too_narrow_to_fit_are_refused_with_the_escape_hatch():
     ("subsample", 0, "'subsample' must be a sample count"),
     ("subsample", 1.5, "or a fraction in (0, 1], got 1.5"),
     ("cutoff", float("nan"), "'cutoff' must be degrees in (0, 90], got nan"),
-    ("edm_tol", -1.0, "'edm_tol' must be a number in [0, 1]"),
+    ("ftol", 0.0, "'ftol' must be a number in (0, 1], got 0.0"),
 ])
 def test_fit_refuses_absurd_numeric_options_before_any_work(key, value, message):
     """The check runs before the table is touched: ``None`` as a table would fail later."""
@@ -192,4 +192,4 @@ def test_fit_refuses_absurd_numeric_options_before_any_work(key, value, message)
         brdffit.fit(None, "ggx", **{key: value})
     assert message in str(err.value)
     assert check_fit_options({"subsample": 0.25, "seed": 0, "multistart": 1000, "rtol": 1.0,
-                              "max_steps": 1, "atol": 1e-300, "edm_tol": 0.0}) is not None
+                              "max_steps": 1, "atol": 1e-300, "ftol": 0.5}) is not None
