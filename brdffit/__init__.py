@@ -29,6 +29,7 @@ _LAZY = {
     "FitResult": ".fitting",
     "fit": ".fitting",
     "get_loss": ".fitting",
+    "fit_many": ".batch",
     "PosteriorResult": ".posterior",
     "sample_posterior": ".posterior",
 }

@@ -1,4 +1,4 @@
-"""The ``brdffit`` command line: ``fit``, ``info``, ``synth``, ``plot``, ``models``, ``demo``.
+"""The ``brdffit`` command line: ``fit``, ``batch``, ``info``, ``synth``, ``plot``, ``models``, ``demo``.
 
 One module per command (``add_parser`` + ``run``); this module builds the parser and turns user
 mistakes into one line on stderr. Exit codes: 0 success; 1 a fit that did not converge (its
@@ -14,11 +14,11 @@ import argparse
 import sys
 import traceback
 
-from . import catalog, demo, fitting, info, plotting, synth
+from . import batch, catalog, demo, fitting, info, plotting, synth
 
 __all__ = ["main", "build_parser"]
 
-COMMANDS = (fitting, info, synth, plotting, catalog, demo)
+COMMANDS = (fitting, batch, info, synth, plotting, catalog, demo)
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_USAGE = 0, 1, 2
 
 
