@@ -70,7 +70,7 @@ def client(cache_home):
     with dask.config.set({**LOCAL_SCHEDULER, "distributed.scheduler.allowed-failures": 0}):
         cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=40,
-                               env={"XDG_CACHE_HOME": str(cache_home), "MPLBACKEND": "Agg"})
+                               env={"XDG_CACHE_HOME": str(cache_home)})
     with cluster, Client(cluster) as c:
         yield c
 
@@ -142,7 +142,7 @@ def test_rerun_skips_everything_done_and_force_refits(first, client, data):
     outdir, df, _ = first
     stamp = (outdir / "shiny" / "ggx.json").stat().st_mtime_ns
     again = brdffit.fit_many([data / "shiny.binary", data / "rough.binary"], "ggx",
-                             client=client, outdir=outdir)
+                             scheduler=client.scheduler.address, outdir=outdir)
     assert again["skipped"].all() and again["success"].all()
     pd.testing.assert_series_equal(again["p_alpha"], df["p_alpha"].iloc[[0, 2]].reset_index(
         drop=True))
@@ -253,3 +253,15 @@ def test_cli_usage_errors_exit_2_before_any_work(data, args, message, capsys, mo
     assert main(["batch", *args]) == 2
     assert message in capsys.readouterr().err
     assert not (data / "o2").exists()
+
+
+def test_compilation_cache_opt_out_and_unwritable_folder(monkeypatch, tmp_path):
+    from brdffit import compilation_cache
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert compilation_cache.folder() == tmp_path / "brdffit" / "jax"
+    monkeypatch.setenv(compilation_cache.OPT_OUT, "1")
+    assert compilation_cache.enable() is None and not (tmp_path / "brdffit").exists()
+    monkeypatch.delenv(compilation_cache.OPT_OUT)
+    (tmp_path / "brdffit").write_text("a file where the folder should be")
+    assert compilation_cache.enable() is None
