@@ -247,11 +247,15 @@ def test_cli_end_to_end_exit_codes_and_summary(data, first, tmp_path, cache_home
     (["shiny.binary", "--model", "ggx", "--outdir", "shiny.binary"], "not a folder"),
     (["shiny.binary", "--outdir", "o2"], "no model given"),
     (["shiny.binary", "--model", "ggx", "--outdir", "o2", "--workers", "0"], "at least 1"),
+    (["shiny.binary", "--model", "ggx", "--outdir", "o2", "--scheduler", "tcp://127.0.0.1:9"],
+     "cannot reach the Dask scheduler at 'tcp://127.0.0.1:9'"),
 ])
 def test_cli_usage_errors_exit_2_before_any_work(data, args, message, capsys, monkeypatch):
+    from brdffit.batch import runner
     from brdffit.cli import main
 
     monkeypatch.chdir(data)
+    monkeypatch.setattr(runner, "CONNECT_TIMEOUT", "1s")
     assert main(["batch", *args]) == 2
     assert message in capsys.readouterr().err
     assert not (data / "o2").exists()

@@ -6,7 +6,8 @@ the same :func:`run_batch`. Where jobs run:
 * ``client``: an existing ``distributed.Client`` (its cluster is used as it is);
 * else ``scheduler`` or ``DASK_SCHEDULER_ADDRESS``: a running scheduler (``tcp://HOST:8786``);
   input paths and the outdir must then be readable (and the outdir writable) by the workers;
-* else a ``LocalCluster`` of ``workers`` processes (default: one per CPU core), one thread each
+* else a ``LocalCluster`` of ``workers`` processes (default: one per CPU core, at most one per
+  2 GiB of memory: :func:`default_workers`), one thread each
   (a fit already uses every core it is given; two fits in one process would only queue),
   started for the batch and closed after it.
 
@@ -28,6 +29,7 @@ import os
 import time
 import uuid
 
+from ..errors import BrdffitError
 from . import inputs, jobs, table
 
 #: Scheduler settings of a local cluster started here. ``allowed-failures``: resubmissions of a
@@ -37,12 +39,27 @@ from . import inputs, jobs, table
 LOCAL_SCHEDULER = {"distributed.scheduler.allowed-failures": 1}
 
 
+#: Memory a local worker is given at least (a full MERL table's fit peaks near 1.3 GiB).
+WORKER_MEMORY = 2 * 2**30
+#: How long to try to reach a scheduler given by address before giving up.
+CONNECT_TIMEOUT = "20s"
+
+
+class SchedulerError(BrdffitError):
+    """The scheduler named by ``--scheduler`` / ``DASK_SCHEDULER_ADDRESS`` cannot be reached."""
+
+
 def default_workers() -> int:
-    """One worker per CPU core available to this process."""
+    """One worker per CPU core available to this process, at most one per
+    :data:`WORKER_MEMORY` of the machine's memory."""
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cores = len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not on Linux
-        return max(1, os.cpu_count() or 1)
+        cores = os.cpu_count() or 1
+    import psutil  # a dependency of distributed
+
+    by_memory = psutil.virtual_memory().total // WORKER_MEMORY
+    return max(1, min(cores, int(by_memory)))
 
 
 @contextlib.contextmanager
@@ -56,7 +73,13 @@ def open_client(client=None, *, workers: int | None = None, scheduler: str | Non
 
     address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
     if address:
-        with Client(address, timeout="30s") as c:
+        try:
+            c = Client(address, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError) as exc:
+            raise SchedulerError(f"cannot reach the Dask scheduler at {address!r} ({exc}); "
+                                 "check the address (tcp://HOST:8786) or unset "
+                                 "DASK_SCHEDULER_ADDRESS to run on local workers") from None
+        with c:
             yield c, f"scheduler {address}"
         return
     import dask
@@ -93,10 +116,10 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
               client=None, workers=None, scheduler=None, progress=None) -> BatchOutcome:
     """Run every job, collect one row per job (in job order), write the table if ``outdir``."""
     t0 = time.perf_counter()
-    if outdir is not None:
-        os.makedirs(outdir, exist_ok=True)
     outputs: dict[int, dict] = {}
     with open_client(client, workers=workers, scheduler=scheduler) as (c, where):
+        if outdir is not None:
+            os.makedirs(outdir, exist_ok=True)
         try:
             _collect(c, job_list, outputs, dict(outdir=outdir, force=force, plot=plot,
                                                 want_result=want_results), progress)
@@ -222,7 +245,8 @@ def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool =
         paths_or_tables: paths, globs, text files listing paths (see
             :func:`brdffit.batch.inputs.expand`), or tables in memory (anything with
             ``.to_samples()``, named by their ``name``); one of them or a list.
-        models: a model name, a comma-separated string (``"ggx,beckmann"``) or a list of names.
+        models: a registered model name, a comma-separated string (``"ggx,beckmann"``) or a
+            list of names.
         client: a ``distributed.Client`` to run on; by default a scheduler at ``scheduler`` or
             ``DASK_SCHEDULER_ADDRESS``, else a local cluster of ``workers`` processes (one per
             core) started for this call (:func:`open_client`).
