@@ -143,6 +143,7 @@ def test_table_files_hold_the_table_and_nothing_partial_is_left(first):
 def test_rerun_skips_everything_done_and_force_refits(first, client, data):
     outdir, df, _ = first
     stamp = (outdir / "shiny" / "ggx.json").stat().st_mtime_ns
+    (outdir / "shiny" / ".ggx.json.k1ll3d.json").write_text('{"trunc')  # a write cut short
     again = brdffit.fit_many([data / "shiny.binary", data / "rough.binary"], "ggx",
                              scheduler=client.scheduler.address, outdir=outdir)
     assert again["skipped"].all() and again["success"].all()

@@ -13,7 +13,8 @@ Files, for material ``m`` and model ``k`` under ``outdir``:
   last: a result counts as done only when its meta file exists and names the same checksum and
   options, so a job killed between two writes is simply fitted again.
 
-Every file is written atomically (:mod:`data_formats._atomic`): it appears complete or not at all.
+Every file is written atomically (:mod:`data_formats._atomic`): it appears complete or not at all;
+the temporary file of a job killed in mid-write is removed when the pair is fitted again.
 In a worker process the first job sets float64 (``jax_enable_x64``) and the persistent compilation
 cache (:mod:`brdffit.compilation_cache`); later jobs reuse the process's compiled programs (one
 compilation per model and table layout per worker). Fits within one process run one at a time.
@@ -149,11 +150,20 @@ def _fit_and_write(job: Job, outdir, plot: bool, base: dict):
     if outdir is not None:
         paths = job.paths(outdir)
         paths["json"].parent.mkdir(parents=True, exist_ok=True)
+        _remove_stale(paths["json"].parent, job.model)
         _write_text(paths["json"], result.to_json() + "\n")
         row["result"] = str(paths["json"].relative_to(outdir))
         if plot:
             _plot(data, result, paths["plot"])
     return row, result
+
+
+def _remove_stale(folder: Path, model: str) -> None:
+    """Remove temporary files left by an earlier job of this (material, model) that was killed
+    while writing (an atomic write's ``.NAME.XXXX`` file; only this job writes these names)."""
+    for pattern in (f".{model}.json.*", f".{model}.meta.json.*", f".{model}-*.png.*"):
+        for stale in folder.glob(pattern):
+            stale.unlink(missing_ok=True)
 
 
 def _plot(data, result, path) -> None:
