@@ -1,4 +1,4 @@
-"""Benchmark: whole databases with ``brdffit batch`` on Dask, against a shell loop of ``brdffit fit``.
+"""Benchmark: whole databases with ``brdffit batch`` (Dask) against a shell loop of ``brdffit fit``.
 
     .venv/bin/python benchmarks/bench_batch.py [--materials 80] [--loop 8] [--models-on 80]
         [--scaling-on 80] [--tiny 200] [--workdir DIR] [--skip STAGE ...]
@@ -34,7 +34,6 @@ from __future__ import annotations
 import argparse
 import concurrent.futures
 import json
-import math
 import os
 import shutil
 import subprocess
@@ -236,8 +235,8 @@ def main(argv=None):
         sub = tables[: args.models_on]
         res = batch(sub, FOUR, 2, work / "out-four", cache)
         report["models"] = describe(f"{FOUR}, 2 workers", res, 4 * len(sub))
-        report["models"]["per_model_job_s"] = {
-            m: round(float(v), 2) for m, v in res["df"].groupby("model")["job_time"].median().items()}
+        medians = res["df"].groupby("model")["job_time"].median()
+        report["models"]["per_model_job_s"] = {m: round(float(v), 2) for m, v in medians.items()}
         report["models"]["converged_per_model"] = {
             m: int(v) for m, v in res["df"].groupby("model")["success"].sum().items()}
         report["models"]["compile_s"] = compile_cost(res["df"])

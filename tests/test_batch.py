@@ -11,7 +11,6 @@ except that it never retries a job whose worker died (``allowed-failures = 0``).
 """
 
 import hashlib
-import json
 import os
 import subprocess
 import sys

@@ -10,5 +10,5 @@ from .inputs import BatchInputError
 from .runner import SchedulerError, fit_many, open_client, run_batch
 from .table import BASE_COLUMNS, OUTCOMES
 
-__all__ = ["BASE_COLUMNS", "OUTCOMES", "BatchInputError", "SchedulerError", "fit_many", "open_client",
-           "run_batch"]
+__all__ = ["BASE_COLUMNS", "OUTCOMES", "BatchInputError", "SchedulerError", "fit_many",
+           "open_client", "run_batch"]

@@ -106,7 +106,7 @@ class BatchOutcome:
 
 
 def make_jobs(mats, models_and_kwargs) -> list[jobs.Job]:
-    """One job per (material, model), material-major; ``models_and_kwargs``: ``[(name, kwargs)]``."""
+    """One job per (material, model), material-major; ``models_and_kwargs``: ``[(name, kw)]``."""
     return [jobs.Job(m.name, name, m.path if m.path is not None else m.table, m.label, kwargs,
                      jobs.options_key(name, kwargs))
             for m in mats for name, kwargs in models_and_kwargs]

@@ -1,4 +1,4 @@
-"""The table of a batch's results: one row per (material, model), its columns, its files, its summary.
+"""The table of a batch's results: one row per (material, model); its columns, files and summary.
 
 Columns, in this order (:data:`BASE_COLUMNS`, then per-result columns in order of appearance):
 
