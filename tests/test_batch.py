@@ -271,3 +271,19 @@ def test_compilation_cache_opt_out_and_unwritable_folder(monkeypatch, tmp_path):
     monkeypatch.delenv(compilation_cache.OPT_OUT)
     (tmp_path / "brdffit").write_text("a file where the folder should be")
     assert compilation_cache.enable() is None
+
+
+def test_progress_bar_counts_done_failed_skipped(capsys):
+    from brdffit.batch.runner import _Bar
+
+    bar = _Bar(3, progress=True)
+    for row in ({"success": True}, {"success": False}, {"success": True, "skipped": True}):
+        bar.update(row)
+    bar.close()
+    assert bar.counts == {"done": 1, "failed": 1, "skipped": 1}
+    err = capsys.readouterr().err
+    assert "3/3" in err and "done=1, failed=1, skipped=1" in err
+    quiet = _Bar(3, progress=False)
+    quiet.update({"success": True})
+    quiet.close()
+    assert capsys.readouterr().err == ""

@@ -106,9 +106,13 @@ class BatchOutcome:
 
 
 def make_jobs(mats, models_and_kwargs) -> list[jobs.Job]:
-    """One job per (material, model), material-major; ``models_and_kwargs``: ``[(name, kw)]``."""
-    return [jobs.Job(m.name, name, m.path if m.path is not None else m.table, m.label, kwargs,
-                     jobs.options_key(name, kwargs))
+    """One job per (material, model), material-major; ``models_and_kwargs``: ``[(name, kw)]``.
+
+    Paths are made absolute (workers of a remote cluster do not share the client's folder);
+    the ``input`` column keeps them as given.
+    """
+    return [jobs.Job(m.name, name, m.table if m.path is None else os.path.abspath(m.path),
+                     m.label, kwargs, jobs.options_key(name, kwargs))
             for m in mats for name, kwargs in models_and_kwargs]
 
 
@@ -116,6 +120,7 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
               client=None, workers=None, scheduler=None, progress=None) -> BatchOutcome:
     """Run every job, collect one row per job (in job order), write the table if ``outdir``."""
     t0 = time.perf_counter()
+    outdir = None if outdir is None else os.path.abspath(outdir)
     outputs: dict[int, dict] = {}
     with open_client(client, workers=workers, scheduler=scheduler) as (c, where):
         if outdir is not None:
