@@ -273,7 +273,7 @@ def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool =
     names = [m.strip() for m in models.split(",")] if isinstance(models, str) else list(models)
     from ..models.registry import get_model
 
-    names = [get_model(m).name for m in names]  # UnknownNameError lists the valid models
+    names = list(dict.fromkeys(get_model(m).name for m in names))  # errors list valid models
     job_list = make_jobs(inputs.materials(paths_or_tables),
                          [(m, dict(fit_options)) for m in names])
     out = run_batch(job_list, outdir=outdir, force=force, plot=plot,
