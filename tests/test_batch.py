@@ -216,7 +216,8 @@ def _cli(*args, cwd, cache_home):
 def test_cli_end_to_end_exit_codes_and_summary(data, first, tmp_path, cache_home):
     """A preset that stops every fit after one step: not converged (and the malformed file an
     error), exit 1; then the default options over the first batch's outdir: all skipped, exit
-    0 (the command line and ``fit_many`` give the same options the same key); usage errors 2."""
+    0 (the command line and ``fit_many`` give the same options the same key); a usage error 2
+    (the other usage errors are checked in-process below)."""
     preset = tmp_path / "one-step.toml"
     preset.write_text("[solver]\nmax_steps = 1\n")
     run = _cli("batch", data / "*.binary", "--model", "ggx", "--config", preset, "--outdir",
@@ -237,6 +238,11 @@ def test_cli_end_to_end_exit_codes_and_summary(data, first, tmp_path, cache_home
     assert rerun.returncode == 0, rerun.stderr
     assert "2 fits: 0 succeeded, 0 failed, 2 skipped" in rerun.stdout
     assert "best model per material" in rerun.stdout and "shiny  ggx (rmse" in rerun.stdout
+
+    usage = _cli("batch", "*.nothing", "--model", "ggx", "--outdir", "o2", cwd=tmp_path,
+                 cache_home=cache_home)
+    assert usage.returncode == 2 and usage.stdout == ""
+    assert usage.stderr.startswith("brdffit batch: error: '*.nothing' matches no file")
 
 
 
