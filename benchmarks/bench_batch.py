@@ -48,6 +48,8 @@ ROOT = Path(__file__).resolve().parent.parent
 REALISTIC = ROOT.parent / "shared" / "realistic"
 BIN = Path(sys.executable).parent
 FOUR = "ggx,beckmann,gtr,disney"
+#: Fit options given to every batch and every `brdffit fit` of the loop (``--subsample``).
+FIT_FLAGS: list[str] = []
 
 
 def say(text: str) -> None:
@@ -82,11 +84,11 @@ def batch(tables, models, workers, outdir, cache, extra=()) -> dict:
     listing.write_text("".join(f"{p}\n" for p in tables))
     env = {**os.environ, "XDG_CACHE_HOME": str(cache)}
     cmd = [str(BIN / "brdffit"), "batch", str(listing), "--model", models, "--outdir",
-           str(outdir), "--workers", str(workers), "--quiet", *extra]
+           str(outdir), "--workers", str(workers), "--quiet", *FIT_FLAGS, *extra]
     t = time.perf_counter()
     run = subprocess.run(cmd, capture_output=True, text=True, env=env)
     wall = time.perf_counter() - t
-    if run.returncode not in (0, 1):
+    if run.returncode not in (0, 1):  # 1: some fits did not converge, which is data
         raise SystemExit(f"brdffit batch failed ({run.returncode}):\n{run.stderr}")
     import pandas as pd
 
@@ -112,9 +114,10 @@ def loop(tables, k, workdir) -> dict:
     out = workdir / "loop"
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir()
-    script = ('for f in "$@"; do "$BRDFFIT" fit "$f" --model ggx --out '
+    script = ('for f in "$@"; do "$BRDFFIT" fit "$f" --model ggx $FLAGS --out '
               '"$OUT/$(basename "$f" .binary).json" --quiet > /dev/null || true; done')
-    env = {**os.environ, "BRDFFIT": str(BIN / "brdffit"), "OUT": str(out)}
+    env = {**os.environ, "BRDFFIT": str(BIN / "brdffit"), "OUT": str(out),
+           "FLAGS": " ".join(FIT_FLAGS)}
     t = time.perf_counter()
     subprocess.run(["bash", "-c", script, "loop", *map(str, sub)], check=True, env=env)
     wall = time.perf_counter() - t
@@ -213,12 +216,17 @@ def main(argv=None):
     ap.add_argument("--scaling-on", type=int, default=80, help="tables for 1 vs 2 workers")
     ap.add_argument("--tiny", type=int, default=200, help="sample lists for the overhead")
     ap.add_argument("--workdir", type=Path, help="keep rendered tables and results here")
+    ap.add_argument("--subsample", type=int, help="fit on N cells of each table (batch and "
+                    "loop alike); full tables by default")
     ap.add_argument("--skip", nargs="*", default=[],
                     choices=["ggx", "loop", "models", "scaling", "overhead"])
     args = ap.parse_args(argv)
+    if args.subsample:
+        FIT_FLAGS[:] = ["--subsample", str(args.subsample)]
     work = args.workdir or Path(tempfile.mkdtemp(prefix="bench-batch-"))
     work.mkdir(parents=True, exist_ok=True)
-    report = {"cpus": os.cpu_count(), "load_at_start": os.getloadavg()[0]}
+    report = {"cpus": os.cpu_count(), "load_at_start": os.getloadavg()[0],
+              "fit_flags": FIT_FLAGS}
     tables = render(work, args.materials)
     cache = work / f"cache-{os.getpid()}"
     if "ggx" not in args.skip:
