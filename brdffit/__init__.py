@@ -30,6 +30,7 @@ _LAZY = {
     "FitResult": ".fitting",
     "fit": ".api",
     "get_loss": ".fitting",
+    "fit_many": ".batch",
     "PosteriorResult": ".posterior",
     "sample_posterior": ".posterior",
 }

@@ -1,5 +1,5 @@
-"""The ``brdffit`` command line: ``fit``, ``info``, ``synth``, ``plot``, ``models``, ``demo``,
-``export``, ``render``.
+"""The ``brdffit`` command line: ``fit``, ``batch``, ``info``, ``synth``, ``plot``, ``models``,
+``demo``, ``export``, ``render``.
 
 One module per command (``add_parser`` + ``run``); this module builds the parser and turns user
 mistakes into one line on stderr. Exit codes: 0 success; 1 a fit that did not converge (its
@@ -25,11 +25,11 @@ import sys
 import traceback
 import warnings
 
-from . import catalog, demo, export, fitting, info, plotting, render, synth
+from . import batch, catalog, demo, export, fitting, info, plotting, render, synth
 
 __all__ = ["main", "build_parser"]
 
-COMMANDS = (fitting, info, synth, plotting, catalog, demo, export, render)
+COMMANDS = (fitting, batch, info, synth, plotting, catalog, demo, export, render)
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_USAGE = 0, 1, 2
 
 

@@ -1,0 +1,146 @@
+"""Inputs of a batch: globs, paths and lists of paths → named materials; input checksums.
+
+A *material* is one input table, named by its file stem (``gold-metallic-paint.binary`` →
+``gold-metallic-paint``) or, for a table given in memory, by its ``name``. Every material needs
+its own name, because its results go to ``OUTDIR/<material>/``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import glob
+import hashlib
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import BrdffitError
+
+#: Input formats by suffix; any other existing file given as an input is a list of paths.
+READERS = {".binary": "MERL table", ".csv": "sample list", ".npz": "sample list"}
+_GLOB_CHARS = set("*?[")
+
+
+class BatchInputError(BrdffitError):
+    """Inputs that cannot make a batch (nothing matched, a missing path, two equal names)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Material:
+    """One input: ``name`` and either ``path`` (a file) or ``table`` (in memory)."""
+
+    name: str
+    path: str | None = None
+    table: object = None
+
+    @property
+    def label(self) -> str:
+        """The input as the results table records it: the path, or ``<memory>``."""
+        return self.path if self.path is not None else "<memory>"
+
+
+def expand(items) -> list[str]:
+    """Paths named by ``items``, in order, each once.
+
+    An item with ``*``, ``?`` or ``[`` is a glob (``**`` recurses; sorted); an existing file whose
+    suffix is not an input format (``.binary``, ``.csv``, ``.npz``) is a list of paths, one per
+    line (blank lines and ``#`` comments skipped, relative paths taken from the list's folder);
+    anything else is a path. A glob that matches nothing or a path that does not exist raises
+    :class:`BatchInputError`.
+    """
+    out: list[str] = []
+    for item in items:
+        item = str(item)
+        if _GLOB_CHARS & set(item):
+            found = sorted(glob.glob(item, recursive=True))
+            if not found:
+                raise BatchInputError(f"{item!r} matches no file; check the pattern (quote it "
+                                      "so the shell does not expand it)")
+            out += found
+        elif Path(item).is_file() and Path(item).suffix.lower() not in READERS:
+            out += _read_list(Path(item))
+        elif Path(item).is_file():
+            out.append(item)
+        else:
+            raise BatchInputError(f"{item}: no such file (inputs are .binary MERL tables, "
+                                  ".csv/.npz sample lists, globs, or a text file of paths)")
+    return list(dict.fromkeys(out))
+
+
+def _read_list(path: Path) -> list[str]:
+    out = []
+    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        p = Path(line) if Path(line).is_absolute() else path.parent / line
+        if not p.is_file():
+            raise BatchInputError(f"{path}, line {n}: {line}: no such file")
+        out.append(str(p))
+    return out
+
+
+def materials(paths_or_tables) -> list[Material]:
+    """:class:`Material` for each input (a path, a glob, a list file, or a table in memory).
+
+    Raises :class:`BatchInputError` when two inputs share a name (``a/x.binary`` and
+    ``b/x.binary``), since their results would go to the same folder.
+    """
+    if isinstance(paths_or_tables, (str, Path)) or hasattr(paths_or_tables, "to_samples"):
+        paths_or_tables = [paths_or_tables]
+    out: list[Material] = []
+    for i, item in enumerate(paths_or_tables):
+        if hasattr(item, "to_samples"):
+            name = _safe(getattr(item, "name", "") or f"table{i}")
+            out.append(Material(name, table=item))
+        else:
+            out += [Material(_safe(Path(p).stem), path=p) for p in expand([item])]
+    seen: dict[str, str] = {}
+    for m in out:
+        if m.name in seen:
+            raise BatchInputError(f"two inputs are both named {m.name!r} ({seen[m.name]} and "
+                                  f"{m.label}); their results would share OUTDIR/{m.name}/: "
+                                  "rename one")
+        seen[m.name] = m.label
+    if not out:
+        raise BatchInputError("no inputs given")
+    return out
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_.+" else "_" for c in str(name)) or "table"
+
+
+def file_checksum(path) -> str:
+    """``sha256:<hex>`` of the file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return "sha256:" + h.hexdigest()
+
+
+def table_checksum(table) -> str:
+    """``sha256:<hex>`` of a table's samples (directions, values, validity), for in-memory input."""
+    s = table.to_samples()
+    h = hashlib.sha256()
+    for a in (s.wi, s.wo, s.rgb, s.valid):
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.tobytes())
+    return "sha256:" + h.hexdigest()
+
+
+def read(path):
+    """The table in ``path``: a MERL table (``.binary``) or a sample list (``.csv``, ``.npz``)."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".binary":
+        from data_formats.merl import read_merl
+
+        return read_merl(path)
+    if suffix in READERS:
+        from data_formats.samplelist import read_samples
+
+        return read_samples(path)
+    raise BatchInputError(f"{path}: unknown input format {suffix or '(no suffix)'!r}; expected "
+                          ".binary, .csv or .npz")

@@ -1,0 +1,282 @@
+"""Running a batch on Dask: the cluster, the jobs, their outcomes, the table, the summary.
+
+``fit_many`` is the whole batch for Python; ``brdffit batch`` (:mod:`brdffit.cli.batch`) calls
+the same :func:`run_batch`. Where jobs run:
+
+* ``client``: an existing ``distributed.Client`` (its cluster is used as it is);
+* else ``scheduler`` or ``DASK_SCHEDULER_ADDRESS``: a running scheduler (``tcp://HOST:8786``);
+  input paths and the outdir must then be readable (and the outdir writable) by the workers;
+* else a ``LocalCluster`` of ``workers`` processes (default: one per CPU core, at most one per
+  2 GiB of memory: :func:`default_workers`), one thread each
+  (a fit already uses every core it is given; two fits in one process would only queue),
+  started for the batch and closed after it.
+
+Worker processes live for the whole batch, so each compiles a model's programs once per table
+layout and reuses them for every later job; the persistent compilation cache
+(:mod:`brdffit.compilation_cache`) lets a fresh worker load them instead of compiling.
+
+A job that takes its worker down (``os._exit``, the out-of-memory killer) is resubmitted by
+Dask up to ``distributed.scheduler.allowed-failures`` times (once on a local cluster started
+here, :data:`LOCAL_SCHEDULER`) and then recorded as ``worker died``; the other jobs go on.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import logging
+import os
+import time
+import uuid
+
+from ..errors import BrdffitError
+from . import inputs, jobs, table
+
+#: Scheduler settings of a local cluster started here. ``allowed-failures``: resubmissions of a
+#: job whose worker died, one retry for a transient cause (memory taken by a concurrent job),
+#: then the job is recorded as failed. (Jobs are submitted one per worker thread, see
+#: :func:`_collect`, so a worker that dies takes no waiting job down with it.)
+LOCAL_SCHEDULER = {"distributed.scheduler.allowed-failures": 1}
+
+
+#: Memory a local worker is given at least (a full MERL table's fit peaks near 1.3 GiB).
+WORKER_MEMORY = 2 * 2**30
+#: How long to try to reach a scheduler given by address before giving up.
+CONNECT_TIMEOUT = "20s"
+
+
+class SchedulerError(BrdffitError):
+    """The scheduler named by ``--scheduler`` / ``DASK_SCHEDULER_ADDRESS`` cannot be reached."""
+
+
+def default_workers() -> int:
+    """One worker per CPU core available to this process, at most one per
+    :data:`WORKER_MEMORY` of the machine's memory."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        cores = os.cpu_count() or 1
+    import psutil  # a dependency of distributed
+
+    by_memory = psutil.virtual_memory().total // WORKER_MEMORY
+    return max(1, min(cores, int(by_memory)))
+
+
+@contextlib.contextmanager
+def open_client(client=None, *, workers: int | None = None, scheduler: str | None = None):
+    """Yield ``(client, description)``: the given client, one connected to ``scheduler`` (or
+    ``DASK_SCHEDULER_ADDRESS``), or one of a new local cluster of ``workers`` processes."""
+    if client is not None:
+        yield client, "the given client"
+        return
+    from distributed import Client, LocalCluster
+
+    address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
+    if address:
+        try:
+            c = Client(address, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError) as exc:
+            raise SchedulerError(f"cannot reach the Dask scheduler at {address!r} ({exc}); "
+                                 "check the address (tcp://HOST:8786) or unset "
+                                 "DASK_SCHEDULER_ADDRESS to run on local workers") from None
+        with c:
+            yield c, f"scheduler {address}"
+        return
+    import dask
+
+    n = int(workers or default_workers())
+    with dask.config.set(LOCAL_SCHEDULER):
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR,
+                               env={"MPLBACKEND": "Agg"})
+    with cluster, Client(cluster) as c:
+        yield c, f"{n} local worker{'s' * (n != 1)}"
+
+
+@dataclasses.dataclass
+class BatchOutcome:
+    """``frame``: the results table; ``results``: a FitResult (or None) per row, when asked;
+    ``wall_time``: seconds; ``where``: what ran the jobs; ``files``: the table's files."""
+
+    frame: object
+    results: list | None
+    wall_time: float
+    where: str
+    files: list
+
+
+def make_jobs(mats, models_and_kwargs) -> list[jobs.Job]:
+    """One job per (material, model), material-major; ``models_and_kwargs``: ``[(name, kw)]``.
+
+    Paths are made absolute (workers of a remote cluster do not share the client's folder);
+    the ``input`` column keeps them as given.
+    """
+    return [jobs.Job(m.name, name, m.table if m.path is None else os.path.abspath(m.path),
+                     m.label, kwargs, jobs.options_key(name, kwargs))
+            for m in mats for name, kwargs in models_and_kwargs]
+
+
+def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=False,
+              client=None, workers=None, scheduler=None, progress=None) -> BatchOutcome:
+    """Run every job, collect one row per job (in job order), write the table if ``outdir``."""
+    t0 = time.perf_counter()
+    outdir = None if outdir is None else os.path.abspath(outdir)
+    outputs: dict[int, dict] = {}
+    with open_client(client, workers=workers, scheduler=scheduler) as (c, where):
+        if outdir is not None:
+            os.makedirs(outdir, exist_ok=True)
+        try:
+            _collect(c, job_list, outputs, dict(outdir=outdir, force=force, plot=plot,
+                                                want_result=want_results), progress)
+        finally:
+            df = table.frame([outputs[i]["row"] for i in sorted(outputs)])
+            files = table.write(df, outdir) if outdir is not None and len(df) else []
+    results = None
+    if want_results:
+        from ..fitting import FitResult
+
+        results = [None if outputs[i]["result"] is None else
+                   FitResult.from_dict(outputs[i]["result"]) for i in sorted(outputs)]
+    return BatchOutcome(df, results, time.perf_counter() - t0, where, files)
+
+
+def _collect(client, job_list, outputs, kwargs, progress) -> None:
+    """Submit the jobs, at most one per worker thread in flight, and store each outcome.
+
+    The window (the cluster's thread count, read again as jobs finish, so it follows workers
+    that join or leave) keeps a worker from holding jobs it is not running: Dask counts every
+    job assigned to a worker that dies as suspect, so a backlog would fail with its worker.
+    """
+    from distributed import as_completed
+
+    token = uuid.uuid4().hex[:8]  # keys unique to this batch: never an earlier batch's result
+    todo = list(enumerate(job_list))[::-1]
+    running = as_completed()
+    futures = {}
+
+    def submit() -> None:
+        i, job = todo.pop()
+        # A table in memory travels inside its task, not scattered: scattered data dies with
+        # the worker holding it, and would take the table's other jobs down with it.
+        data = None
+        if not isinstance(job.source, str):
+            job, data = dataclasses.replace(job, source=None), job.source
+        fut = client.submit(jobs.run, job, data, key=f"fit-{job.material}-{job.model}-{token}-{i}",
+                            pure=False, **kwargs)
+        futures[fut] = i
+        running.add(fut)
+
+    def fill() -> None:
+        window = max(1, sum(client.nthreads().values()))
+        while todo and running.count() < window:
+            submit()
+
+    bar = _Bar(len(job_list), progress)
+    try:
+        fill()
+        for fut in running:
+            i = futures.pop(fut)
+            outputs[i] = _output(fut, job_list[i])
+            bar.update(outputs[i]["row"])
+            fill()
+    except BaseException:
+        client.cancel(list(futures))
+        raise
+    finally:
+        bar.close()
+
+
+def _output(fut, job) -> dict:
+    """A finished future's output, or the row of a job whose worker was lost."""
+    if fut.status == "finished":
+        try:
+            return fut.result()
+        except Exception as exc:  # noqa: BLE001 (a result that cannot come back)
+            return _lost(job, "error", f"{type(exc).__name__}: {exc}")
+    try:
+        exc = fut.exception()
+    except Exception as err:  # noqa: BLE001 (cancelled)
+        exc = err
+    from distributed import KilledWorker
+
+    if isinstance(exc, KilledWorker):
+        worker = getattr(exc, "last_worker", None) or "a worker"
+        return _lost(job, "worker died", f"the worker process running it ({worker}) died: out "
+                     "of memory, killed or crashed; see that worker's log")
+    return _lost(job, "error", f"{type(exc).__name__}: {exc}")
+
+
+def _lost(job, outcome: str, message: str) -> dict:
+    from .. import __version__
+
+    row = {"material": job.material, "model": job.model, "skipped": False, "input": job.input,
+           "options": job.key, "brdffit_version": __version__,
+           **table.failure_row(outcome, message)}
+    return {"row": row, "result": None}
+
+
+class _Bar:
+    """A tqdm bar with done/failed/skipped counts and time left; off when ``progress`` is False
+    (``None``: on when stderr is a terminal)."""
+
+    def __init__(self, total: int, progress):
+        self.counts = {"done": 0, "failed": 0, "skipped": 0}
+        self.bar = None
+        if progress is False:
+            return
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=total, unit="fit", disable=None if progress is None else False,
+                        dynamic_ncols=True, desc="fits")
+
+    def update(self, row: dict) -> None:
+        key = "skipped" if row.get("skipped") else "done" if row.get("success") else "failed"
+        self.counts[key] += 1
+        if self.bar is not None:
+            self.bar.set_postfix(self.counts, refresh=False)
+            self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool = False,
+             plot: bool = False, return_results: bool = False, workers: int | None = None,
+             scheduler: str | None = None, progress: bool | None = False, **fit_options):
+    """Fit every model in ``models`` to every input, on Dask; return a pandas DataFrame.
+
+    Args:
+        paths_or_tables: paths, globs, text files listing paths (see
+            :func:`brdffit.batch.inputs.expand`), or tables in memory (anything with
+            ``.to_samples()``, named by their ``name``); one of them or a list.
+        models: a registered model name, a comma-separated string (``"ggx,beckmann"``) or a
+            list of names.
+        client: a ``distributed.Client`` to run on; by default a scheduler at ``scheduler`` or
+            ``DASK_SCHEDULER_ADDRESS``, else a local cluster of ``workers`` processes (one per
+            core) started for this call (:func:`open_client`).
+        outdir: if given, each result is written to ``outdir/<material>/<model>.json`` (and
+            figures with ``plot``), the table to ``outdir/results.parquet`` and ``.csv``, and
+            results already there for the same input checksum and options are read back
+            instead of refitted (``skipped``), unless ``force``.
+        return_results: also return the :class:`~brdffit.FitResult` of each row (None where a
+            job failed): ``(frame, results)``.
+        progress: a progress bar on stderr (``None``: when stderr is a terminal).
+        **fit_options: keywords of :func:`brdffit.fit`, applied to every job (``throw`` is
+            always False: a fit that does not converge is a row with ``success=False``).
+
+    Rows follow the inputs, then the models; columns are those of :mod:`brdffit.batch.table`.
+    Failures never raise: a malformed input, a fit that cannot run, or a worker that dies is a
+    row with ``success=False`` and the reason in ``message``.
+    """
+    fit_options.pop("throw", None)
+    names = [m.strip() for m in models.split(",")] if isinstance(models, str) else list(models)
+    from ..models.registry import get_model
+
+    names = list(dict.fromkeys(get_model(m).name for m in names))  # errors list valid models
+    job_list = make_jobs(inputs.materials(paths_or_tables),
+                         [(m, dict(fit_options)) for m in names])
+    out = run_batch(job_list, outdir=outdir, force=force, plot=plot,
+                    want_results=return_results, client=client, workers=workers,
+                    scheduler=scheduler, progress=progress)
+    return (out.frame, out.results) if return_results else out.frame

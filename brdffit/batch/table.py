@@ -1,0 +1,143 @@
+"""The table of a batch's results: one row per (material, model); its columns, files and summary.
+
+Columns, in this order (:data:`BASE_COLUMNS`, then per-result columns in order of appearance):
+
+* ``material``, ``model``; ``success`` (the fit converged); ``outcome``: ``converged``,
+  ``not converged``, ``error`` (the job raised: a malformed file, a fit that could not start) or
+  ``worker died`` (the process running it was lost: out of memory, killed); ``message`` (the
+  solver's message, or the error); ``skipped`` (the row was read from an existing result).
+* ``steps``, ``time`` (seconds of the fit itself), ``job_time`` (seconds of the whole job on its
+  worker: reading, fitting, writing), ``cost``, ``n_cells``, ``at_bound`` (``name=lower;...``).
+* ``input`` (the path, or ``<memory>``), ``checksum`` (``sha256:`` of the input),
+  ``options`` (the key of the model and fit options, see :func:`brdffit.batch.jobs.options_key`),
+  ``brdffit_version``, ``worker``, ``result`` (the JSON result's path, relative to the outdir).
+* Then every error metric of the results (``rmse``, ``rmse_cosine``, ``rmse_log``, ``rel_error``)
+  and, for every fitted parameter's flat name (``alpha``, ``f0[0]`` …), ``p_<name>`` and its
+  standard error ``se_<name>``; NaN where a model has no such parameter or a job failed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+BASE_COLUMNS = (
+    "material", "model", "success", "outcome", "message", "skipped", "steps", "time", "job_time",
+    "cost", "n_cells", "at_bound", "input", "checksum", "options", "brdffit_version", "worker",
+    "result",
+)
+OUTCOMES = ("converged", "not converged", "error", "worker died")
+#: The metric that ranks models of one material in the summary (the fitted loss's RMS residual).
+RANK_BY = "rmse"
+
+
+def _flat(prefix: str, values: dict) -> dict:
+    out = {}
+    for name, v in values.items():
+        a = np.asarray(v, float)
+        if a.ndim == 0:
+            out[f"{prefix}{name}"] = float(a)
+        else:
+            out.update({f"{prefix}{name}[{i}]": float(x) for i, x in enumerate(a.ravel())})
+    return out
+
+
+def result_row(result) -> dict:
+    """The columns a :class:`~brdffit.FitResult` fills (everything but the job's own)."""
+    row = {
+        "success": bool(result.success),
+        "outcome": "converged" if result.success else "not converged",
+        "message": str(result.message or ""),
+        "steps": int(result.steps),
+        "time": float(result.wall_time),
+        "cost": float(result.cost),
+        "n_cells": int(result.n_cells),
+        "at_bound": ";".join(f"{k}={v}" for k, v in sorted(result.at_bound.items())),
+    }
+    row.update({k: float(v) for k, v in result.metrics.items()})
+    row.update(_flat("p_", result.params))
+    row.update(_flat("se_", result.stderr))
+    return row
+
+
+def failure_row(outcome: str, message: str) -> dict:
+    """The columns of a job that produced no result."""
+    assert outcome in ("error", "worker died"), outcome
+    return {"success": False, "outcome": outcome, "message": " ".join(str(message).split())}
+
+
+def frame(rows: list[dict]):
+    """A pandas DataFrame of ``rows`` with the columns in the documented order."""
+    import pandas as pd
+
+    extra = list(dict.fromkeys(k for r in rows for k in r if k not in BASE_COLUMNS))
+    metrics = [k for k in extra if not k.startswith(("p_", "se_"))]
+    params = [c for k in extra if k.startswith("p_") for c in (k, "se_" + k[2:]) if c in extra]
+    orphans = [k for k in extra if k.startswith("se_") and k not in params]
+    columns = [*BASE_COLUMNS, *metrics, *params, *orphans]
+    df = pd.DataFrame.from_records(rows, columns=columns)
+    for col in ("success", "skipped"):
+        df[col] = df[col].fillna(False).astype(bool)
+    for col in ("steps", "n_cells"):
+        df[col] = df[col].astype("Int64")
+    return df
+
+
+def write(df, outdir) -> list:
+    """``results.parquet`` and ``results.csv`` in ``outdir``, each written atomically."""
+    from pathlib import Path
+
+    from data_formats._atomic import atomic_path
+
+    paths = []
+    for name, writer in (("results.parquet", lambda p: df.to_parquet(p, index=False)),
+                         ("results.csv", lambda p: df.to_csv(p, index=False))):
+        with atomic_path(Path(outdir) / name) as tmp:
+            writer(tmp)
+        paths.append(Path(outdir) / name)
+    return paths
+
+
+def best_models(df) -> dict:
+    """Material → ``(model, rmse)`` of its converged fit with the lowest :data:`RANK_BY`."""
+    ok = df[df["success"]]
+    if RANK_BY not in ok or ok.empty:
+        return {}
+    ok = ok[np.isfinite(ok[RANK_BY].astype(float))]
+    best = ok.loc[ok.groupby("material", sort=False)[RANK_BY].idxmin()]
+    return {r.material: (r.model, float(getattr(r, RANK_BY))) for r in best.itertuples()}
+
+
+def counts(df) -> dict:
+    """``succeeded`` / ``failed`` (fitted in this run) and ``skipped`` (existing results)."""
+    fitted = ~df["skipped"]
+    return {"succeeded": int((fitted & df["success"]).sum()),
+            "failed": int((fitted & ~df["success"]).sum()),
+            "skipped": int(df["skipped"].sum())}
+
+
+def summary(df, wall_time: float, where: str = "") -> str:
+    """What a batch did, for people: counts, each failure with its reason, the best model per
+    material (lowest RMS residual of the fitted loss among converged fits), total time."""
+    c = counts(df)
+    where = f" on {where}" if where else ""
+    lines = [f"{len(df)} fits: {c['succeeded']} succeeded, {c['failed']} failed, {c['skipped']} "
+             f"skipped (existing results) in {_duration(wall_time)}{where}"]
+    bad = df[~df["success"]]
+    if len(bad):
+        lines.append("not successful:")
+        lines += [f"  {r.material} × {r.model}: {r.outcome}{' (skipped)' * bool(r.skipped)}: "
+                  f"{r.message}" for r in bad.itertuples()]
+    best = best_models(df)
+    if best:
+        lines.append(f"best model per material (lowest {RANK_BY} among converged fits):")
+        width = max(map(len, best))
+        lines += [f"  {m:<{width}}  {model} ({RANK_BY} {v:.4g})" for m, (model, v) in best.items()]
+    return "\n".join(lines)
+
+
+def _duration(seconds: float) -> str:
+    if not math.isfinite(seconds) or seconds < 120:
+        return f"{seconds:.1f} s"
+    return f"{int(seconds // 60)} min {seconds % 60:02.0f} s"

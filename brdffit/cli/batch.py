@@ -1,0 +1,104 @@
+"""``brdffit batch INPUT... --model M1,M2 --outdir DIR``: fit many tables with many models, on Dask.
+
+Every option of ``brdffit fit`` that shapes the fit (``--config``, ``--loss``, ``--solver``,
+``--cutoff``, ``--fix``, ``--init``, ``--subsample``, ``--seed``, ``--multistart``) applies to
+every job; options are merged and checked against each model before anything runs (a bad name
+or value is exit 2, as for ``fit``). Results, the table, resuming and failure isolation are
+described in :mod:`brdffit.batch`; where jobs run in :mod:`brdffit.batch.runner`.
+
+Exit codes: 0 every (material, model) has a converged result; 1 some did not (not converged,
+an error, a worker that died; each is in the table with its reason); 2 the invocation was wrong
+(no input matched, unknown model, bad option, an outdir that is a file).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ._common import UsageError
+
+#: ``brdffit fit`` options reused here unchanged (their parsing and checks are ``fit``'s).
+FIT_OPTIONS = ("config", "loss", "solver", "cutoff", "fix", "init", "bound", "subsample", "seed",
+               "multistart", "max_steps", "rtol", "atol", "ftol", "precision", "covariance")
+
+
+def _fit_option_actions():
+    from . import fitting
+
+    parser = argparse.ArgumentParser(add_help=False)
+    fitting.add_parser(parser.add_subparsers(), [])
+    fit = parser._subparsers._group_actions[0].choices["fit"]
+    actions = {a.dest: a for a in fit._actions}
+    return [actions[d] for d in FIT_OPTIONS]
+
+
+def add_parser(sub, parents) -> None:
+    p = sub.add_parser(
+        "batch",
+        parents=parents,
+        allow_abbrev=False,
+        help="fit many tables with many models (on Dask), resumably",
+        description="Fit every MODEL to every INPUT on a Dask cluster (by default local worker "
+        "processes, one per core) and write OUTDIR/<material>/<model>.json per fit, "
+        "OUTDIR/results.parquet and OUTDIR/results.csv, and a summary. A rerun skips fits whose "
+        "result exists for the same input checksum and options (--force refits). A failing "
+        "input or fit is recorded and the batch goes on. Exit 0: all fits converged; 1: some "
+        "did not; 2: bad invocation.",
+    )
+    p.add_argument("inputs", nargs="+", metavar="INPUT",
+                   help="MERL tables / sample lists, globs ('data/*.binary'), or a text file "
+                   "listing paths one per line")
+    p.add_argument("--model", "-m", help="model names, comma-separated (ggx,beckmann,gtr); "
+                   "default: the preset's model")
+    fit_group = p.add_argument_group("fit options (as for `brdffit fit`, applied to every job)")
+    for action in _fit_option_actions():
+        fit_group._add_action(action)
+    p.add_argument("--outdir", "-o", required=True, metavar="DIR",
+                   help="folder for the results (created if needed)")
+    p.add_argument("--plot", action="store_true",
+                   help="also write each fit's figures (OUTDIR/<material>/<model>-slice.png, ...)")
+    p.add_argument("--force", action="store_true", help="refit even where a result exists")
+    p.add_argument("--workers", type=int, metavar="N",
+                   help="local worker processes (default: one per CPU core)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="submit to a running Dask scheduler (tcp://HOST:8786; default "
+                   "$DASK_SCHEDULER_ADDRESS); inputs and OUTDIR must be visible to its workers")
+    p.set_defaults(run=run)
+
+
+def jobs_from(args):
+    """Materials and per-model fit options from the arguments (every check done here)."""
+    from ..batch import inputs, runner
+    from .fitting import options_from
+
+    if args.workers is not None and args.workers < 1:
+        raise UsageError(f"--workers {args.workers}: give at least 1")
+    names = [m.strip() for m in (args.model or "").split(",") if m.strip()]
+    if not names:
+        names = [None]  # the preset must name the model; options_from says so if it does not
+    models = []
+    for name in dict.fromkeys(names):
+        (model,), options = options_from(argparse.Namespace(**{**vars(args), "model": name}))
+        models.append((model.name, options.fit_kwargs()))
+    outdir = Path(args.outdir)
+    if outdir.exists() and not outdir.is_dir():
+        raise UsageError(f"--outdir {args.outdir}: exists and is not a folder")
+    return runner.make_jobs(inputs.materials(args.inputs), models)
+
+
+def run(args) -> int:
+    from ..batch import runner, table
+
+    job_list = jobs_from(args)
+    out = runner.run_batch(job_list, outdir=args.outdir, force=args.force, plot=args.plot,
+                           client=None, workers=args.workers, scheduler=args.scheduler,
+                           progress=False if args.quiet else None)
+    print(table.summary(out.frame, out.wall_time, where=out.where))
+    print("wrote " + ", ".join(str(p) for p in out.files))
+    ok = bool(out.frame["success"].all())
+    if not ok:
+        print(f"brdffit batch: {int((~out.frame['success']).sum())} of {len(out.frame)} fits "
+              "not successful (see the table's outcome and message columns)", file=sys.stderr)
+    return 0 if ok else 1
