@@ -16,8 +16,8 @@ command-line flags), a later layer winning key by key. Layout (every key optiona
 
     [solver]                      # solver and its tolerances
     name = "lm"
-    rtol = 1e-8
-    atol = 1e-8
+    rtol = 1e-14
+    atol = 1e-14
     ftol = 1e-9                   # converged when the best step would lower the cost by < ftol × cost
     max_steps = 256
     precision = "float64"         # or "float32" model evaluation

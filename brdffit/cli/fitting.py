@@ -95,9 +95,9 @@ def _add_solver_arguments(p) -> None:
     g.add_argument("--max-steps", type=int, metavar="N",
                    help="solver steps per start before giving up (default 200)")
     g.add_argument("--rtol", type=float, metavar="X",
-                   help="relative tolerance (default 1e-8 in float64, 1e-5 in float32)")
+                   help="relative step tolerance of the stall test (default 1e-14 in float64, 1e-6 in float32)")
     g.add_argument("--atol", type=float, metavar="X",
-                   help="absolute tolerance (default 1e-8 in float64, 1e-5 in float32)")
+                   help="absolute step tolerance of the stall test (default 1e-14 in float64, 1e-6 in float32)")
     g.add_argument("--ftol", type=float, metavar="X",
                    help="the optimality test: converged when the best bounded Gauss-Newton step "
                    "would lower the cost by less than X times the cost (default 1e-9 in "

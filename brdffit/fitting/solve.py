@@ -147,7 +147,7 @@ def _default_dtype():
 
 
 def _tolerances(rtol, atol, ftol, dtype):
-    base = 1e-8 if dtype == "float64" else 1e-5
+    base = 1e-14 if dtype == "float64" else 1e-6  # the Cauchy test only catches a true stall
     return (
         base if rtol is None else float(rtol),
         base if atol is None else float(atol),
@@ -364,9 +364,9 @@ def fit(
         multistart: number of extra perturbed starts; the lowest cost wins.
         max_steps: the step limit; reaching it is a failure (``success=False``), never the
             normal way out.
-        rtol, atol: optimistix's Cauchy test on the accepted step (defaults 1e-8 in float64,
-            1e-5 in float32); it ends a solve that no longer moves, reported as stalled unless
-            the optimality test holds too.
+        rtol, atol: optimistix's Cauchy test on the accepted step (defaults 1e-14 in float64,
+            1e-6 in float32: near rounding, so that it ends only a solve that no longer moves,
+            reported as stalled unless the optimality test holds too).
         ftol: the optimality test: converged when the bounded Gauss–Newton step from the end
             point would lower the cost by less than ``ftol`` times the cost (default 1e-9 in
             float64, 1e-6 in float32); see :func:`brdffit.fitting.solvers.optimality`.
