@@ -153,7 +153,7 @@ def test_provenance_is_recorded_and_round_trips_through_json(samples_csv, result
     for key in ("loss", "cutoff", "subsample", "seed", "solver", "rtol", "atol", "precision",
                 "max_steps", "multistart", "ftol", "covariance", "model"):
         assert key in opts, key
-    assert opts["loss"] == "log" and opts["solver"] == "lm" and opts["rtol"] == 1e-8
+    assert opts["loss"] == "log" and opts["solver"] == "lm" and opts["rtol"] == 1e-14
     assert set(prov["versions"]) >= {"brdffit", "jax", "optimistix"}
     assert prov["versions"]["jax"] == jax.__version__
     assert prov["date"].endswith("+00:00") and prov["date"][:2] == "20"

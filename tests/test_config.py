@@ -23,7 +23,7 @@ def test_every_registered_model_has_a_preset(name):
     assert opts.model == name
     model = brdffit.get_model(name)
     opts.check_params(model)  # names, shapes and values against the registry
-    assert opts.loss and opts.cutoff and opts.solver and opts.rtol and opts.max_steps
+    assert opts.loss and opts.cutoff and opts.solver and opts.ftol and opts.max_steps
     text = path.read_text()
     for pname in model.names:  # every parameter is listed to edit (start value and bounds)
         assert len(re.findall(rf"^(# )?{re.escape(pname)} = ", text, re.M)) >= 2 - (
