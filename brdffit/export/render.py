@@ -65,14 +65,15 @@ def render_mitsuba(bsdf: dict, **options) -> np.ndarray:
     return np.array(image, dtype=float)[..., :3]
 
 
-def write_png(image: np.ndarray, path, *, exposure: float | None = None) -> float:
-    """Write ``image`` (linear radiance) as an sRGB PNG; returns the exposure used (by default
-    the 99.5th percentile of the lit pixels maps to 0.85, as the lit-sphere figure does)."""
+def write_png(image: np.ndarray, path) -> tuple[float, float]:
+    """Write ``image`` (linear radiance) as a PNG with the figures' logarithmic tone mapping
+    (:func:`brdffit.plots._style.log_tonemap`: the median lit luminance at 0.4, the 99.9th
+    percentile at white, hue kept), as brdffit's own lit-sphere figure shows it; returns the
+    ``(ref, top)`` luminances used."""
     import matplotlib.image
 
     from ..plots import _style
 
-    if exposure is None:
-        exposure = _style.robust_exposure(image, 99.5, target=0.85)
-    matplotlib.image.imsave(str(path), np.clip(_style.srgb_tonemap(image, exposure), 0.0, 1.0))
-    return exposure
+    ref, top = _style.log_levels(image)
+    matplotlib.image.imsave(str(path), np.clip(_style.log_tonemap(image, ref, top), 0.0, 1.0))
+    return ref, top
