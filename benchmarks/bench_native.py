@@ -43,7 +43,6 @@ from brdffit.config import find_config, load_config
 from brdffit.export import export
 from brdffit.export.approximate import _starts
 from brdffit.fitting.init import measure
-from brdffit.models.evaluate import evaluate_model
 
 ROOT = Path(__file__).resolve().parent.parent
 REALISTIC = ROOT.parent / "shared" / "realistic"

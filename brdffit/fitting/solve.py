@@ -39,7 +39,7 @@ from ..models.registry import get_model
 from . import init as init_mod
 from .data import check_enough, select
 from .losses import DEFAULT_LOSS, get_loss
-from .normal_form import normal_form, over_blocks
+from .normal_form import normal_form
 from .problem import Problem
 from .setup import assign, check_within, flat_bounds, flat_log
 from .solvers import (
