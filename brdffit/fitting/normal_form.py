@@ -34,8 +34,8 @@ stored.
 The one difference from running optimistix on the full residual: its Cauchy termination test
 compares successive residual vectors element by element; here it compares successive ``r̃``
 (``R^{-⊤}J^⊤r`` tends to zero at the optimum, ``c`` to the residual norm), together with the
-usual test on the step in ``u``. :class:`brdffit.fitting.solvers.Lookahead` applies the same test
-to the step just proposed, so the last full pass is not spent confirming a negligible step.
+usual test on the step in ``u``. That test only catches a stall; convergence is the
+optimality test of :class:`brdffit.fitting.solvers.Optimality`, computed from ``J̃`` and ``r̃``.
 """
 
 from __future__ import annotations
@@ -125,9 +125,9 @@ def normal_form(sums: Callable, chunks: int = 1) -> Callable:
     ``fn`` returns ``(r̃, aux)`` (use ``has_aux=True``) with ``aux = {"jtj", "meat", "sum_r2",
     "extra", "m"}``: ``JᵀJ`` and ``Jᵀdiag(r²)J`` at ``u``, accumulated in the same pass, for the
     covariance at the optimum; ``Σ r²`` (without the floor) and the further sums of ``sums``
-    (the error figures); ``m = extra[0]``, the number of weighted residuals (for the statistical
-    convergence test of :class:`brdffit.fitting.solvers.Lookahead`). ``fn`` is only meant to be differentiated once, to first order, by the solver (its
-    ``jvp`` is ``J̃ δ``; ``aux`` has zero tangent).
+    (the error figures); ``m = extra[0]``, the number of weighted residuals (for the covariance).
+    ``fn`` is only meant to be differentiated once, to first order, by the solver (its ``jvp`` is
+    ``J̃ δ``; ``aux`` has zero tangent).
     """
 
     def _both(u, args):
