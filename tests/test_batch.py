@@ -293,3 +293,27 @@ def test_progress_bar_counts_done_failed_skipped(capsys):
     quiet.update({"success": True})
     quiet.close()
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("cores, n, expect", [
+    (list(range(4)), 2, [[0, 1], [2, 3]]),
+    (list(range(5)), 2, [[0, 1, 2], [3, 4]]),
+    (list(range(2)), 2, [[0], [1]]),
+    (list(range(2)), 3, []),  # more workers than cores: not pinned
+])
+def test_core_groups_split_the_available_cores(monkeypatch, cores, n, expect):
+    from brdffit.batch import pinning
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(cores), raising=False)
+    assert pinning.core_groups(n) == expect
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
+                    reason="pinning needs a platform with CPU affinity and at least 2 cores")
+def test_local_workers_are_pinned_to_their_own_cores():
+    from brdffit.batch.pinning import core_groups
+    from brdffit.batch.runner import open_client
+
+    with open_client(workers=2) as (client, _):
+        got = client.run(lambda: sorted(os.sched_getaffinity(0)))
+    assert sorted(got.values()) == sorted(core_groups(2))

@@ -9,7 +9,9 @@ the same :func:`run_batch`. Where jobs run:
 * else a ``LocalCluster`` of ``workers`` processes (default: one per CPU core, at most one per
   2 GiB of memory: :func:`default_workers`), one thread each
   (a fit already uses every core it is given; two fits in one process would only queue),
-  started for the batch and closed after it.
+  started for the batch and closed after it. Each local worker is pinned to its own share of
+  the cores (:class:`brdffit.batch.pinning.PinCores`): XLA sizes its thread pool to the cores a process may use, so
+  unpinned workers would each start a thread per core and oversubscribe the machine.
 
 Worker processes live for the whole batch, so each compiles a model's programs once per table
 layout and reuses them for every later job; the persistent compilation cache
@@ -84,12 +86,17 @@ def open_client(client=None, *, workers: int | None = None, scheduler: str | Non
         return
     import dask
 
+    from . import pinning
+
     n = int(workers or default_workers())
     with dask.config.set(LOCAL_SCHEDULER):
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR,
                                env={"MPLBACKEND": "Agg"})
     with cluster, Client(cluster) as c:
+        groups = pinning.core_groups(n)
+        if n > 1 and groups:
+            c.register_plugin(pinning.PinCores(groups))
         yield c, f"{n} local worker{'s' * (n != 1)}"
 
 
@@ -126,8 +133,8 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
         if outdir is not None:
             os.makedirs(outdir, exist_ok=True)
         try:
-            _collect(c, job_list, outputs, dict(outdir=outdir, force=force, plot=plot,
-                                                want_result=want_results), progress)
+            _collect(c, job_list, outputs, {"outdir": outdir, "force": force, "plot": plot,
+                                                "want_result": want_results}, progress)
         finally:
             df = table.frame([outputs[i]["row"] for i in sorted(outputs)])
             files = table.write(df, outdir) if outdir is not None and len(df) else []

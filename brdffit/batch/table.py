@@ -122,8 +122,8 @@ def summary(df, wall_time: float, where: str = "") -> str:
     material (lowest RMS residual of the fitted loss among converged fits), total time."""
     c = counts(df)
     where = f" on {where}" if where else ""
-    lines = [f"{len(df)} fits: {c['succeeded']} succeeded, {c['failed']} failed, {c['skipped']} "
-             f"skipped (existing results) in {_duration(wall_time)}{where}"]
+    lines = [(f"{len(df)} fits: {c['succeeded']} succeeded, {c['failed']} failed, {c['skipped']} "
+             f"skipped (existing results) in {_duration(wall_time)}{where}")]
     bad = df[~df["success"]]
     if len(bad):
         lines.append("not successful:")
