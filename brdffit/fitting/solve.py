@@ -9,7 +9,7 @@ bounded optimistix solver on the Gauss–Newton normal form (:mod:`.normal_form`
 The stages of one start, each beginning where the previous one ended:
 
 1. **scan** (``scan=True``, models with a lobe width): the start and copies with the lobe
-   widths shifted by factors of 3 and 8 either way, each solved loosely on ``SCAN_FRACTION``
+   widths shifted by a factor of 8 either way, each solved loosely on ``SCAN_FRACTION``
    of the blocks; the lowest cost wins (a real table can have several minima);
 2. **warm** (selections of at least ``WARM_MIN_CHUNKS`` blocks): the optimum on
    ``WARM_FRACTION`` of the blocks, a fraction of a full pass per step;
@@ -201,9 +201,8 @@ WARM_FRACTION = 1 / 16
 SCAN_FRACTION = 1 / 32
 SCAN_FTOL = 1e-4
 #: Shifts of the log-scaled parameters (the lobe widths), in box units, of the scan's
-#: candidate starts: a box unit is the whole log range (``α ∈ [10⁻³, 1]``: 0.15 is a factor
-#: 2.8, 0.3 a factor 8).
-SCAN_SHIFTS = (-0.3, -0.15, 0.15, 0.3)
+#: candidate starts: a box unit is the whole log range (``α ∈ [10⁻³, 1]``: 0.3 is a factor 8).
+SCAN_SHIFTS = (-0.3, 0.3)
 
 
 def _call(problem, solver, z0, data, floor, max_steps, active, second=None):
