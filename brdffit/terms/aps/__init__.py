@@ -2,8 +2,9 @@
 
 A BRDF from *any* microfacet distribution ``p(h)``: :mod:`.distributions` (the ``p(h)``),
 :mod:`.quadrature` (rules on the sphere), :mod:`.tables` (``g(k)``, ``⟨⟨hn⟩⟩``, eqs. 18, 22, 25),
-:mod:`.specular` (eqs. 26 and 14), :mod:`.diffuse` (eqs. 28–30), :mod:`.models` (the whole BRDF
-and the registered models). Importing :mod:`brdffit.models` registers the models.
+:mod:`.specular` (eqs. 26 and 14), :mod:`.diffuse` (eqs. 28–30); the whole BRDF and the
+registered models are in :mod:`brdffit.models.aps`. Importing :mod:`brdffit.models` registers
+the models.
 """
 
 from .diffuse import RTable, aps_diffuse, aps_diffuse_metal, build_r_table

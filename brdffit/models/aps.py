@@ -31,13 +31,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._math import chi_plus, cos_theta, dot, half_vector
-from ..fresnel import schlick
-from ..models.registry import Model, Param, register
-from .diffuse import RTable, build_r_table, coupled_scale, coupled_term
-from .distributions import AnisotropicGaussian, Velvet, satin, v_groove
-from .specular import CORRELATED, UNCORRELATED, specular_geometry
-from .tables import DEFAULT_RESOLUTION, GTable, Resolution, build_g_table
+from ..terms._math import chi_plus, cos_theta, dot, half_vector
+from ..terms.aps.diffuse import RTable, build_r_table, coupled_scale, coupled_term
+from ..terms.aps.distributions import AnisotropicGaussian, Velvet, satin, v_groove
+from ..terms.aps.specular import CORRELATED, UNCORRELATED, specular_geometry
+from ..terms.aps.tables import DEFAULT_RESOLUTION, GTable, Resolution, build_g_table
+from ..terms.fresnel import schlick
+from .registry import Model, Param, register
 
 
 class APSState(eqx.Module):
@@ -95,12 +95,12 @@ def aps_brdf(dist, f0, diffuse, wi, wo, *, shadowing=UNCORRELATED, resolution=DE
     """``ρ = ρ_s + ρ_diffuse`` of APS 2000 for the distribution ``dist``, RGB ``(..., 3)``.
 
     Args:
-        dist: a :class:`~brdffit.aps.distributions.Distribution` (any ``p(h)``).
+        dist: a :class:`~brdffit.terms.aps.distributions.Distribution` (any ``p(h)``).
         f0: Schlick normal reflectance (RGB).
         diffuse: ρ_d (RGB) of eq. 30; ignored (``ρ_d = f0``) when ``metal=True``; ``None``
             leaves the diffuse term out (and its table unbuilt).
         shadowing: ``UNCORRELATED`` (eq. 26) or ``Correlated(width)`` (eq. 14).
-        resolution: table and quadrature sizes (:class:`~brdffit.aps.tables.Resolution`).
+        resolution: table and quadrature sizes (:class:`~brdffit.terms.aps.tables.Resolution`).
         metal: use the metal variant of the diffuse term (§5.1).
     """
     f0 = jnp.asarray(f0)

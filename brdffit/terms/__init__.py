@@ -1,0 +1,18 @@
+"""The physics pieces models are composed from: pure ``jnp`` functions, one idea per module.
+
+* :mod:`._math`: the shading-frame conventions (``z`` is the normal, ``wi``, ``wo``, ``wm``) and
+  the gradient-safe primitives every term uses;
+* :mod:`.ndf`: normal distribution functions, one module per family, each giving ``D`` and ``Λ``;
+* :mod:`.masking`: ``G1`` and every ``G2`` form, from an NDF's ``Λ``;
+* :mod:`.fresnel`: Fresnel terms (Schlick, dielectric, conductor);
+* :mod:`.diffuse`: closed-form diffuse lobes (Lambert, Burley's);
+* :mod:`.microfacet`: the microfacet specular lobe composed from an NDF, a ``G2`` form and a
+  Fresnel term;
+* :mod:`.energy`: terms that read a precomputed albedo table (the table, multiple scattering,
+  the coupled diffuse);
+* :mod:`.aps`: the pieces of the Ashikhmin–Premože–Shirley generator (any ``p(h)``).
+
+Within this package a module imports only those listed before it (``_math`` first, ``aps`` and
+``energy`` last), and nothing here imports :mod:`brdffit.models` or anything above it. The
+subpackages are imported where they are used; this one loads none of them.
+"""
