@@ -18,7 +18,7 @@ import pytest
 from half_vector_rule import half_vector_rule
 
 from brdffit.models import get_model
-from brdffit.models.aps import ANISO_RESOLUTION, aps_brdf
+from brdffit.models.aps import ANISO_RESOLUTION
 from brdffit.terms.aps import (
     COARSE,
     CORRELATED,
@@ -30,6 +30,7 @@ from brdffit.terms.aps import (
     Resolution,
     TabulatedDistribution,
     Velvet,
+    aps_brdf,
     aps_specular,
     build_g_table,
     satin,

@@ -37,9 +37,9 @@ WHITE = {
         base_color=1.0, metallic=1.0, roughness=0.5, sheen=0.0, clearcoat=0.0, subsurface=0.0,
         anisotropic=0.8,
     ),
-    # APS 2000 models (brdffit/models/aps.py): specular alone with f0 = 1. Velvet reflects almost nothing
-    # specularly near the normal (p(h) -> 0 there), so it keeps its coupled diffuse term at
-    # rho_d = 1: by APS eq. 30 its total albedo is then exactly 1, a tight bound.
+    # APS 2000 models (brdffit/models/aps.py): specular alone with f0 = 1. Velvet reflects almost
+    # nothing specularly near the normal (p(h) -> 0 there), so it keeps its coupled diffuse term
+    # at rho_d = 1: by APS eq. 30 its total albedo is then exactly 1, a tight bound.
     "aps-gaussian": dict(diffuse=0.0, f0=1.0, sigma_x=0.2, sigma_y=0.5),
     "aps-velvet": dict(diffuse=1.0, f0=1.0, sigma=0.5),
     "aps-satin": dict(diffuse=0.0, f0=1.0),
