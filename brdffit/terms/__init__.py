@@ -5,7 +5,7 @@
 * :mod:`.ndf`: normal distribution functions, one module per family, each giving ``D`` and ``Λ``;
 * :mod:`.masking`: ``G1`` and every ``G2`` form, from an NDF's ``Λ``;
 * :mod:`.fresnel`: Fresnel terms (Schlick, dielectric, conductor);
-* :mod:`.diffuse`: closed-form diffuse lobes (Lambert, Burley's);
+* :mod:`.diffuse`: closed-form diffuse lobes (Lambert, Burley, Oren–Nayar, Shirley, Hammon);
 * :mod:`.microfacet`: the microfacet specular lobe composed from an NDF, a ``G2`` form and a
   Fresnel term;
 * :mod:`.energy`: terms that read a precomputed albedo table (the table, multiple scattering,
