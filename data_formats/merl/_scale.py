@@ -13,6 +13,15 @@ CHANNELS = "RGB"
 SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
 
 
+def unstorable(values, valid):
+    """``(count, first cell)`` of the valid cells where some channel of ``values`` is negative,
+    NaN or infinite (what a MERL file cannot store), or ``None`` when there is no such cell."""
+    bad = valid & ~np.all(np.isfinite(values) & (values >= 0.0), axis=-1)
+    if not bad.any():
+        return None
+    return int(np.count_nonzero(bad)), tuple(int(x) for x in np.argwhere(bad)[0])
+
+
 def stored_values(rgb, valid):
     """Stored (unscaled) values, channel-last, ``-1`` in missing cells: ``rgb / SCALE``.
 
@@ -20,11 +29,11 @@ def stored_values(rgb, valid):
     NaN, infinite, or so large that ``rgb / SCALE`` overflows).
     """
     stored = rgb / SCALE
-    ok = np.all(np.isfinite(stored) & (stored >= 0.0), axis=-1) | ~valid
-    if not ok.all():
-        cell = tuple(int(x) for x in np.argwhere(~ok)[0])
+    bad = unstorable(stored, valid)
+    if bad is not None:
+        count, cell = bad
         raise ValueError(
-            f"{int(np.count_nonzero(~ok))} valid cells hold values a MERL file cannot store "
+            f"{count} valid cells hold values a MERL file cannot store "
             f"(first: cell {cell} = {rgb[cell].tolist()}): expected finite BRDF values >= 0 "
             f"and below {np.finfo(np.float64).max * SCALE[0]:.3g}. Mark such cells missing "
             "(valid=False) or fix the values"

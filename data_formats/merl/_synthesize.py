@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._grid import MERL_SHAPE, above_horizon, cell_directions
+from ._grid import MERL_SHAPE, above_horizon, cell_directions, shape_key
+from ._scale import unstorable
 from ._table import MERLTable
 
 
@@ -17,15 +18,15 @@ def synthesize(fn, name: str = "", shape=MERL_SHAPE) -> MERLTable:
     database, and ``fn``'s values there are ignored (NaN is fine). Values are snapped to the
     file grid, so writing the table and reading it back gives it exactly.
     """
-    shape = tuple(int(n) for n in shape)
+    shape = shape_key(shape)
     wi, wo = cell_directions(shape)
     rgb = np.broadcast_to(np.asarray(fn(wi, wo), dtype=np.float64), shape + (3,))
     valid = np.array(above_horizon(shape))
-    ok = np.all(np.isfinite(rgb) & (rgb >= 0.0), axis=-1) | ~valid
-    if not ok.all():
-        cell = tuple(int(x) for x in np.argwhere(~ok)[0])
+    bad = unstorable(rgb, valid)
+    if bad is not None:
+        count, cell = bad
         raise ValueError(
-            f"synthesize: fn returned {int(np.count_nonzero(~ok))} negative or non-finite "
+            f"synthesize: fn returned {count} negative or non-finite "
             f"values above the horizon (first: cell {cell}, wi={wi[cell].tolist()}, "
             f"wo={wo[cell].tolist()}: {rgb[cell].tolist()}); a BRDF must be finite and >= 0"
         )
