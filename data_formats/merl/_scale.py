@@ -13,13 +13,14 @@ CHANNELS = "RGB"
 SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
 
 
-def unstorable(values, valid):
-    """``(count, first cell)`` of the valid cells where some channel of ``values`` is negative,
-    NaN or infinite (what a MERL file cannot store), or ``None`` when there is no such cell."""
+def check_storable(values, valid, message) -> None:
+    """Raise ``ValueError(message(count, cell))`` when a valid cell of ``values`` has a channel
+    that is negative, NaN or infinite (what a MERL file cannot store): ``count`` such cells,
+    ``cell`` the index of the first."""
     bad = valid & ~np.all(np.isfinite(values) & (values >= 0.0), axis=-1)
-    if not bad.any():
-        return None
-    return int(np.count_nonzero(bad)), tuple(int(x) for x in np.argwhere(bad)[0])
+    if bad.any():
+        first = tuple(int(x) for x in np.argwhere(bad)[0])
+        raise ValueError(message(int(np.count_nonzero(bad)), first))
 
 
 def stored_values(rgb, valid):
@@ -29,15 +30,12 @@ def stored_values(rgb, valid):
     NaN, infinite, or so large that ``rgb / SCALE`` overflows).
     """
     stored = rgb / SCALE
-    bad = unstorable(stored, valid)
-    if bad is not None:
-        count, cell = bad
-        raise ValueError(
-            f"{count} valid cells hold values a MERL file cannot store "
-            f"(first: cell {cell} = {rgb[cell].tolist()}): expected finite BRDF values >= 0 "
-            f"and below {np.finfo(np.float64).max * SCALE[0]:.3g}. Mark such cells missing "
-            "(valid=False) or fix the values"
-        )
+    check_storable(stored, valid, lambda count, cell: (
+        f"{count} valid cells hold values a MERL file cannot store "
+        f"(first: cell {cell} = {rgb[cell].tolist()}): expected finite BRDF values >= 0 "
+        f"and below {np.finfo(np.float64).max * SCALE[0]:.3g}. Mark such cells missing "
+        "(valid=False) or fix the values"
+    ))
     stored[~valid] = -1.0
     return stored
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._grid import MERL_SHAPE, above_horizon, cell_directions, shape_key
-from ._scale import unstorable
+from ._scale import check_storable
 from ._table import MERLTable
 
 
@@ -22,12 +22,9 @@ def synthesize(fn, name: str = "", shape=MERL_SHAPE) -> MERLTable:
     wi, wo = cell_directions(shape)
     rgb = np.broadcast_to(np.asarray(fn(wi, wo), dtype=np.float64), shape + (3,))
     valid = np.array(above_horizon(shape))
-    bad = unstorable(rgb, valid)
-    if bad is not None:
-        count, cell = bad
-        raise ValueError(
-            f"synthesize: fn returned {count} negative or non-finite "
-            f"values above the horizon (first: cell {cell}, wi={wi[cell].tolist()}, "
-            f"wo={wo[cell].tolist()}: {rgb[cell].tolist()}); a BRDF must be finite and >= 0"
-        )
+    check_storable(rgb, valid, lambda count, cell: (
+        f"synthesize: fn returned {count} negative or non-finite values above the horizon "
+        f"(first: cell {cell}, wi={wi[cell].tolist()}, wo={wo[cell].tolist()}: "
+        f"{rgb[cell].tolist()}); a BRDF must be finite and >= 0"
+    ))
     return MERLTable.from_rgb(rgb, valid, name=name)
