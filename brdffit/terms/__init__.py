@@ -12,7 +12,8 @@
   the coupled diffuse);
 * :mod:`.aps`: the pieces of the Ashikhmin–Premože–Shirley generator (any ``p(h)``).
 
-Within this package a module imports only those listed before it (``_math`` first, ``aps`` and
-``energy`` last), and nothing here imports :mod:`brdffit.models` or anything above it. The
-subpackages are imported where they are used; this one loads none of them.
+The pieces come in ranks: ``_math``; then ``ndf``, ``masking``, ``fresnel``; then ``diffuse``,
+``microfacet``; then ``energy``, ``aps``. A piece imports only pieces of a lower rank, and
+nothing here imports :mod:`brdffit.models` or anything above it (``tests/test_layers.py``
+checks both). The pieces are imported where they are used; this package loads none of them.
 """
