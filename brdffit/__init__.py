@@ -1,9 +1,10 @@
 """brdffit: differentiable BRDF fitting for measured reflectance data.
 
-Layers (imports only go downward): :mod:`data_formats` (file formats, NumPy only) →
-:mod:`brdffit._math`, :mod:`brdffit.ndf`, :mod:`brdffit.masking`, :mod:`brdffit.fresnel`,
-:mod:`brdffit.diffuse` (pure ``jnp`` pieces) → :mod:`brdffit.models` (composed models and their
-registry) → :mod:`brdffit.fitting` (least squares) and :mod:`brdffit.posterior` (emcee) →
+Layers (imports only go downward, checked by ``tests/test_layers.py``): :mod:`data_formats`
+(file formats, NumPy only) → :mod:`brdffit.terms` (the physics pieces, pure ``jnp``: NDFs,
+masking, Fresnel, diffuse, the microfacet lobe, energy terms, the APS generator) →
+:mod:`brdffit.models` (registered models and their registry) → :mod:`brdffit.fitting` (least
+squares), :mod:`brdffit.posterior` (emcee), :mod:`brdffit.export`, :mod:`brdffit.plots` →
 :mod:`brdffit.cli`.
 
 The names below load their modules on first use (PEP 562), so ``import brdffit`` and

@@ -1,8 +1,8 @@
 """Rusinkiewicz (1998) half/difference angles: direction pairs <-> ``(theta_h, theta_d, phi_d)``.
 
-General, not MERL-specific; NumPy only. Conventions (``brdffit._math`` states them too): ``z`` is
-the normal, ``wi`` and ``wo`` are unit vectors pointing away from the surface, batched as
-``(..., 3)``.
+General, not MERL-specific; NumPy only. Conventions (``brdffit.terms._math`` states them too):
+``z`` is the normal, ``wi`` and ``wo`` are unit vectors pointing away from the surface, batched
+as ``(..., 3)``.
 
 Forward map (Rusinkiewicz 1998, "A New Change of Variables for Efficient BRDF Representation"):
 

@@ -17,7 +17,9 @@ import numpy as np
 import pytest
 from half_vector_rule import half_vector_rule
 
-from brdffit.aps import (
+from brdffit.models import get_model
+from brdffit.models.aps import ANISO_RESOLUTION
+from brdffit.terms.aps import (
     COARSE,
     CORRELATED,
     UNCORRELATED,
@@ -28,17 +30,17 @@ from brdffit.aps import (
     Resolution,
     TabulatedDistribution,
     Velvet,
+    aps_brdf,
     aps_specular,
     build_g_table,
     satin,
     v_groove,
 )
-from brdffit.aps.models import ANISO_RESOLUTION, aps_brdf
-from brdffit.fresnel import schlick
-from brdffit.masking import G2_separable
-from brdffit.models import get_model, microfacet_specular
-from brdffit.ndf import GGX
-from brdffit.ndf.beckmann import Beckmann
+from brdffit.terms.fresnel import schlick
+from brdffit.terms.masking import G2_separable
+from brdffit.terms.microfacet import microfacet_specular
+from brdffit.terms.ndf import GGX
+from brdffit.terms.ndf.beckmann import Beckmann
 
 F64 = jnp.float64
 
@@ -259,7 +261,7 @@ def test_staged_evaluation_equals_the_model_function(name):
 
 def test_azimuth_matches_atan2():
     """The table lookups' azimuth (octant-reduced arctan) is ``atan2`` wrapped to [0, 2π)."""
-    from brdffit._math import azimuth
+    from brdffit.terms._math import azimuth
 
     rng = np.random.default_rng(3)
     xy = rng.normal(size=(20000, 2))

@@ -12,7 +12,7 @@ from test_aps import albedo, hemi
 
 from brdffit.models import get_model
 from brdffit.models.cloth import velvet_cloth
-from brdffit.ndf.sheen import GeneralizedVelvet, ImageworksSheen
+from brdffit.terms.ndf.sheen import GeneralizedVelvet, ImageworksSheen
 
 
 def _polar(n=1600, m=8):

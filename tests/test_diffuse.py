@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from brdffit import diffuse
+from brdffit.terms import diffuse
 
 RGB = np.array([0.8, 0.5, 0.2])
 

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from half_vector_rule import half_vector_rule
 
-from brdffit.diffuse import disney_diffuse
 from brdffit.models import disney as dm
 from brdffit.models import get_model
+from brdffit.terms.diffuse import disney_diffuse
 
 MODEL = get_model("disney")
 PI = np.pi

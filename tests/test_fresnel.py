@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from brdffit import fresnel
+from brdffit.terms import fresnel
 
 #: Complex indices (η, k) at R, G, B, rounded from refractiveindex.info (Johnson & Christy;
 #: Rakić for Al). Only their plausibility matters here; the oracle takes the same numbers.

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.special import erfc
 
-from brdffit.ndf import GGX, Beckmann
+from brdffit.terms.ndf import GGX, Beckmann
 from data_formats.merl import HORIZON_EPS
 
 COS = np.array([1.7e-7, 1e-7, 1e-8, 3e-9, 1.01 * HORIZON_EPS])

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from scipy.special import erfc
 
-from brdffit._math import half_vector
-from brdffit.masking import (
+from brdffit.terms._math import half_vector
+from brdffit.terms.masking import (
     G1,
     G2_direction_correlated,
     G2_height_correlated,
@@ -23,8 +23,8 @@ from brdffit.masking import (
     lambda_van_ginneken,
     relative_azimuth,
 )
-from brdffit.models.microfacet import microfacet_specular
-from brdffit.ndf import GGX, Beckmann
+from brdffit.terms.microfacet import microfacet_specular
+from brdffit.terms.ndf import GGX, Beckmann
 
 FORMS = [G2_separable, G2_height_correlated, G2_direction_correlated, G2_height_direction_correlated]
 

@@ -37,9 +37,9 @@ WHITE = {
         base_color=1.0, metallic=1.0, roughness=0.5, sheen=0.0, clearcoat=0.0, subsurface=0.0,
         anisotropic=0.8,
     ),
-    # APS 2000 models (brdffit/aps): specular alone with f0 = 1. Velvet reflects almost nothing
-    # specularly near the normal (p(h) -> 0 there), so it keeps its coupled diffuse term at
-    # rho_d = 1: by APS eq. 30 its total albedo is then exactly 1, a tight bound.
+    # APS 2000 models (brdffit/models/aps.py): specular alone with f0 = 1. Velvet reflects almost
+    # nothing specularly near the normal (p(h) -> 0 there), so it keeps its coupled diffuse term
+    # at rho_d = 1: by APS eq. 30 its total albedo is then exactly 1, a tight bound.
     "aps-gaussian": dict(diffuse=0.0, f0=1.0, sigma_x=0.2, sigma_y=0.5),
     "aps-velvet": dict(diffuse=1.0, f0=1.0, sigma=0.5),
     "aps-satin": dict(diffuse=0.0, f0=1.0),
@@ -149,7 +149,7 @@ def test_energy_white_setting_albedo_at_most_one(name):
 
 def test_albedo_quadrature_reproduces_lambert():
     """The energy test's quadrature is itself checked: a Lambertian surface has albedo ρ."""
-    from brdffit.diffuse import lambert
+    from brdffit.terms.diffuse import lambert
 
     for theta_i in np.radians([0.0, 45.0, 80.0]):
         a = _albedo(lambda p, wi, wo: lambert(jnp.asarray([0.7, 0.3, 1.0]), wi, wo), {}, theta_i)
@@ -283,7 +283,7 @@ def test_ggx_aniso_reduces_to_isotropic_and_matches_rtr_9_53():
     h = np.asarray(wi) + np.asarray(wo)
     h /= np.linalg.norm(h, axis=-1, keepdims=True)
     D_ref = 1 / (np.pi * ax * ay * ((h[:, 0] / ax) ** 2 + (h[:, 1] / ay) ** 2 + h[:, 2] ** 2) ** 2)
-    from brdffit.ndf import GGX
+    from brdffit.terms.ndf import GGX
 
     np.testing.assert_allclose(GGX(ax, ay).D(jnp.asarray(h)), D_ref, rtol=1e-12)
 

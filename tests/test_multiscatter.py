@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from test_aps import albedo, hemi
 
-from brdffit.albedo_table import albedo_table
-from brdffit.coupled_diffuse import coupled_diffuse
-from brdffit.fresnel import schlick
-from brdffit.models import microfacet_specular
-from brdffit.multiscatter import kulla_conty, multiscatter_specular, schlick_average
-from brdffit.ndf import GGX
+from brdffit.terms.energy.albedo_table import albedo_table
+from brdffit.terms.energy.coupled_diffuse import coupled_diffuse
+from brdffit.terms.energy.multiscatter import kulla_conty, multiscatter_specular, schlick_average
+from brdffit.terms.fresnel import schlick
+from brdffit.terms.microfacet import microfacet_specular
+from brdffit.terms.ndf import GGX
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@ closed forms (GTR(γ=2) = GGX, k(α, γ) at its removable singularities against 
 ``decimal`` values, Beckmann's rational Λ within Walter's bound), the numerical Λ against GGX's
 and Beckmann's closed forms, gradients against finite differences, float32 and NaN safety.
 
-The reference quadratures here are written independently of :mod:`brdffit.ndf.numerical`:
+The reference quadratures here are written independently of :mod:`brdffit.terms.ndf.numerical`:
 NumPy, trapezoid rule in ``z = ln(tan θm / α)`` (exponentially convergent for these smooth,
 fast-decaying integrands) and in the azimuth.
 """
@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from brdffit.ndf import (
+from brdffit.terms.ndf import (
     ALPHA_MIN,
     GGX,
     GTR,
@@ -29,7 +29,7 @@ from brdffit.ndf import (
     gtr_log_normalization,
     numerical_lambda,
 )
-from brdffit.ndf.numerical import projected_area
+from brdffit.terms.ndf.numerical import projected_area
 
 # --- independent NumPy references ---------------------------------------------------------------
 

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from brdffit import get_model
-from brdffit.diffuse import lambert
 from brdffit.models import Model, Param
 from brdffit.plots import (
     diagnostics,
@@ -28,6 +27,7 @@ from brdffit.plots import (
     slice_data,
 )
 from brdffit.plots.sphere import DEFAULT_LIGHT, sphere_directions
+from brdffit.terms.diffuse import lambert
 from data_formats import MERLTable, SampleSet, synthesize
 
 RHO = np.array([0.2, 0.5, 0.8])

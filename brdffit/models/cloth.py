@@ -1,7 +1,7 @@
 r"""Cloth BRDFs (RTR §9.10.2) and their registered models ``cloth-velvet`` and ``cloth-sheen``.
 
 * :func:`velvet_cloth`: the cloth BRDF of *The Order: 1886*, RTR eq. 9.74, with the generalized
-  velvet NDF (RTR eq. 9.73, :class:`brdffit.ndf.sheen.GeneralizedVelvet`): no masking term and
+  velvet NDF (RTR eq. 9.73, :class:`brdffit.terms.ndf.sheen.GeneralizedVelvet`): no masking term and
   the modified denominator ``4(n·l + n·v − (n·l)(n·v))``, plus the Fresnel-weighted Lambert
   diffuse of RTR eq. 9.63.
 * :func:`sheen_lobe_imageworks`: the Imageworks sheen (RTR eq. 9.75) as a microfacet lobe with
@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .._math import chi_plus, cos_theta, dot, half_vector, safe_div
-from ..diffuse import lambert
-from ..fresnel import schlick
-from ..ndf.sheen import GeneralizedVelvet, ImageworksSheen
-from .microfacet import microfacet_specular
+from ..terms._math import chi_plus, cos_theta, dot, half_vector, safe_div
+from ..terms.diffuse import lambert
+from ..terms.fresnel import schlick
+from ..terms.microfacet import microfacet_specular
+from ..terms.ndf.sheen import GeneralizedVelvet, ImageworksSheen
 from .registry import Model, Param, register
 
 

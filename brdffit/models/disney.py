@@ -28,12 +28,12 @@ from functools import partial
 
 import jax.numpy as jnp
 
-from .._math import chi_plus, cos_theta, dot, half_vector, safe_div
-from ..diffuse import disney_diffuse
-from ..fresnel import schlick, schlick_weight
-from ..masking import G2_separable
-from ..ndf import GGX, GTR
-from .microfacet import microfacet_specular
+from ..terms._math import chi_plus, cos_theta, dot, half_vector, safe_div
+from ..terms.diffuse import disney_diffuse
+from ..terms.fresnel import schlick, schlick_weight
+from ..terms.masking import G2_separable
+from ..terms.microfacet import microfacet_specular
+from ..terms.ndf import GGX, GTR
 from .registry import Model, Param, register
 
 #: Luminance weights of the reference implementation's tint (an approximation of Rec. 709 Y).
@@ -104,8 +104,8 @@ def specular_lobe(base_color, metallic, specular, specular_tint, roughness, anis
     addenda's revision: Smith G for anisotropic GGX (Heitz 2014) with the *unremapped* α_x, α_y
     (the 2012 remapping ``α_g = (0.5 + roughness/2)^2`` of §5.6 is removed), in the separable
     form the reference shader uses (``smithG_GGX_aniso`` twice: RTR eq. 9.27,
-    :func:`~brdffit.masking.G2_separable`), not the height-correlated default of
-    :func:`~brdffit.models.microfacet_specular`. Returns ``(..., 3)``.
+    :func:`~brdffit.terms.masking.G2_separable`), not the height-correlated default of
+    :func:`~brdffit.terms.microfacet.microfacet_specular`. Returns ``(..., 3)``.
     """
     ax, ay = anisotropic_alphas(roughness, anisotropic)
     f0 = specular_f0(base_color, metallic, specular, specular_tint)

@@ -1,20 +1,20 @@
 """Registered energy-conserving GGX variants: ``ggx-ms`` (RTR 9.56–9.60) and ``ggx-coupled`` (RTR 9.65).
 
-Both read the precomputed GGX albedo table of :mod:`brdffit.albedo_table` (built on first use,
-a few seconds, then cached).
+Both read the precomputed GGX albedo table of :mod:`brdffit.terms.energy.albedo_table` (built
+on first use, a few seconds, then cached).
 """
 
 from __future__ import annotations
 
 from functools import partial
 
-from ..albedo_table import albedo_table
-from ..coupled_diffuse import coupled_diffuse
-from ..diffuse import lambert
-from ..fresnel import schlick
-from ..multiscatter import multiscatter_specular
-from ..ndf import GGX
-from .microfacet import microfacet_specular
+from ..terms.diffuse import lambert
+from ..terms.energy.albedo_table import albedo_table
+from ..terms.energy.coupled_diffuse import coupled_diffuse
+from ..terms.energy.multiscatter import multiscatter_specular
+from ..terms.fresnel import schlick
+from ..terms.microfacet import microfacet_specular
+from ..terms.ndf import GGX
 from .registry import Model, register
 from .standard import ALPHA, DIFFUSE, F0
 

@@ -22,8 +22,8 @@ Dielectric BRDF" (the "full code" listing). With ``V`` the view, ``L`` the light
 
 ``D`` is GGX (RTR eq. 9.41) and ``G`` is the height-correlated Smith form (RTR eq. 9.31 with
 GGX's Λ, eq. 9.42; the spec cites Heitz 2014): the same function, rearranged, as
-:func:`brdffit.masking.G2_height_correlated` with :class:`brdffit.ndf.GGX`, which is what the
-code uses. ``C`` is ``baseColorFactor`` (linear RGB), ``metallic`` ``metallicFactor``,
+:func:`brdffit.terms.masking.G2_height_correlated` with :class:`brdffit.terms.ndf.GGX`, which is
+what the code uses. ``C`` is ``baseColorFactor`` (linear RGB), ``metallic`` ``metallicFactor``,
 ``roughness`` ``roughnessFactor``; ``ior = 1.5`` gives the fixed ``f0 = 0.04``. Not energy
 conserving (the spec's §B.3.5 says so: ``fresnel_mix`` is not), but reciprocal.
 """
@@ -32,11 +32,11 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .._math import dot, half_vector
-from ..diffuse import lambert
-from ..fresnel import schlick_weight
-from ..ndf import GGX
-from .microfacet import microfacet_specular
+from ..terms._math import dot, half_vector
+from ..terms.diffuse import lambert
+from ..terms.fresnel import schlick_weight
+from ..terms.microfacet import microfacet_specular
+from ..terms.ndf import GGX
 from .registry import Model, Param, register
 
 #: ``f0`` of the dielectric part: ``((1 − ior)/(1 + ior))²`` at the fixed ``ior = 1.5``.

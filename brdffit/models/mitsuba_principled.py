@@ -21,9 +21,10 @@ weight ``w(x) = (1 − x)^5`` (clamped) and ``brdf = 1 − metallic`` (``spec_tr
 * ``F_p`` (``principled_fresnel``, front side):
   ``(1 − m)(1 − t) F_diel(c_d; η) + m · Schlick(C; c_d) + (1 − m) t · Schlick(C_tint R0(η); c_d)``
   with ``m = metallic``, ``t = spec_tint``, the *exact* dielectric Fresnel ``F_diel`` of
-  :func:`brdffit.fresnel.dielectric`, ``η = 2/(1 − sqrt(0.08 specular)) − 1`` (the constructor's
-  mapping of ``specular``), ``R0(η) = ((η − 1)/(η + 1))²`` and ``C_tint = C / lum(C)`` (white if
-  ``lum = 0``), ``lum`` Rec. 709 luminance (0.212671, 0.715160, 0.072169), Mitsuba's
+  :func:`brdffit.terms.fresnel.dielectric`, ``η = 2/(1 − sqrt(0.08 specular)) − 1`` (the
+  constructor's mapping of ``specular``), ``R0(η) = ((η − 1)/(η + 1))²`` and
+  ``C_tint = C / lum(C)`` (white if ``lum = 0``), ``lum`` Rec. 709 luminance (0.212671,
+  0.715160, 0.072169), Mitsuba's
   ``luminance`` in RGB mode. Mitsuba skips the lobe where ``F_diel = 0``; so does this code.
 * Diffuse: ``F_i = w(cos θi)``, ``F_o = w(cos θo)``, ``f_diff = (1 − F_i/2)(1 − F_o/2)``,
   ``R_r = 2 r c_d²``, ``f_retro = R_r (F_o + F_i + F_o F_i (R_r − 1))``, and Mitsuba's fake
@@ -51,10 +52,10 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .._math import chi_plus, cos_theta, dot, half_vector, safe_div
-from ..fresnel import dielectric, schlick, schlick_weight
-from ..masking import G2_separable
-from ..ndf import GGX
+from ..terms._math import chi_plus, cos_theta, dot, half_vector, safe_div
+from ..terms.fresnel import dielectric, schlick, schlick_weight
+from ..terms.masking import G2_separable
+from ..terms.ndf import GGX
 from .registry import Model, Param, register
 
 #: Mitsuba's ``luminance()`` in RGB mode (Rec. 709 / sRGB Y).

@@ -18,9 +18,9 @@ and the Fresnel term of ``include/mitsuba/render/fresnel.h`` (``fresnel_conducto
   height-correlated form the library's other models use. For Beckmann, ``smith_g1`` is Walter et
   al.'s rational approximation (RTR eq. 9.39, ``1/(1 + Λ)`` written out), not the exact erf.
 * ``F``: the exact unpolarized conductor Fresnel of the complex index ``η + ik`` per RGB channel
-  (:func:`brdffit.fresnel.conductor` is the same closed form), or, in the *tint* form, Mitsuba's
-  defaults ``η = 0, k = 1`` (``F ≡ 1``) times ``specular_reflectance``.
-* Mitsuba clamps ``α`` at 1e-4 (``configure()``), as :data:`brdffit.ndf.ALPHA_MIN` does.
+  (:func:`brdffit.terms.fresnel.conductor` is the same closed form), or, in the *tint* form,
+  Mitsuba's defaults ``η = 0, k = 1`` (``F ≡ 1``) times ``specular_reflectance``.
+* Mitsuba clamps ``α`` at 1e-4 (``configure()``), as :data:`brdffit.terms.ndf.ALPHA_MIN` does.
 
 Parameter names are Mitsuba's: ``alpha`` (isotropic) or ``alpha_u``/``alpha_v``, ``eta``, ``k``,
 ``specular_reflectance``. :func:`roughconductor_model` builds any combination of the options;
@@ -35,10 +35,10 @@ from functools import partial
 
 import jax.numpy as jnp
 
-from ..fresnel import conductor
-from ..masking import G2_separable
-from ..ndf import GGX, Beckmann
-from .microfacet import microfacet_specular
+from ..terms.fresnel import conductor
+from ..terms.masking import G2_separable
+from ..terms.microfacet import microfacet_specular
+from ..terms.ndf import GGX, Beckmann
 from .registry import _REGISTRY, Model, Param, register, register_factory
 
 #: Physical ranges of the optical constants fitted per channel. Metals in the visible have

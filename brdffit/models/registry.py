@@ -90,7 +90,7 @@ class Model:
     ``combine(state, quantities) -> f_r``, such that ``fn(params, wi, wo)`` equals
     ``combine(s, per_pair(s, wi, wo))`` with ``s = prepare(params)``.
     :func:`brdffit.models.evaluate.evaluate_model` then prepares once per call and compiles the
-    other two as separate programs (see :mod:`brdffit.aps.models` for why that is faster). The
+    other two as separate programs (see :mod:`brdffit.models.aps` for why that is faster). The
     fitter always uses ``fn``.
     """
 

@@ -1,17 +1,18 @@
 """The standard registered models: one microfacet specular lobe (or two) plus Lambert.
 
-Every entry is a short ``fn(params, wi, wo)`` built from the pieces in :mod:`brdffit.ndf`,
-:mod:`brdffit.masking`, :mod:`brdffit.fresnel` and :mod:`brdffit.diffuse`, and a parameter list.
+Every entry is a short ``fn(params, wi, wo)`` built from the pieces in
+:mod:`brdffit.terms.ndf`, :mod:`brdffit.terms.masking`, :mod:`brdffit.terms.fresnel` and
+:mod:`brdffit.terms.diffuse`, and a parameter list.
 """
 
 from __future__ import annotations
 
 from functools import partial
 
-from ..diffuse import lambert
-from ..fresnel import schlick
-from ..ndf import GGX, GTR, Beckmann, BlinnPhong
-from .microfacet import microfacet_specular
+from ..terms.diffuse import lambert
+from ..terms.fresnel import schlick
+from ..terms.microfacet import microfacet_specular
+from ..terms.ndf import GGX, GTR, Beckmann, BlinnPhong
 from .registry import Model, Param, register
 
 #: Bounds shared by the single-lobe models. Roughness ``alpha`` spans decades (polished metals

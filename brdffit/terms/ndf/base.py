@@ -6,11 +6,11 @@ methods, after pbrt-v4's ``TrowbridgeReitzDistribution``:
 * ``D(wm)``: the microfacet normal density, normalised so that ``∫ D(m) (n·m) dm = 1``
   (RTR eq. 9.21), zero for back-facing ``wm``.
 * ``Lambda(w)``: Smith's auxiliary function, from which ``G1 = 1/(1 + Λ)`` (RTR eq. 9.24) and
-  every G2 form in :mod:`brdffit.masking` are built.
+  every G2 form in :mod:`brdffit.terms.masking` are built.
 
 Parameters are stored as JAX arrays so an NDF can be built inside a jitted, differentiated
 function (``GGX(params["alpha"])``). New families go in their own module in this package and are
-re-exported from :mod:`brdffit.ndf`.
+re-exported from :mod:`brdffit.terms.ndf`.
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """Smith masking and masking-shadowing, every form written once from an NDF's ``Lambda``.
 
-All functions take an NDF object (see :mod:`brdffit.ndf`), directions ``wi``, ``wo`` and the
+All functions take an NDF object (see :mod:`brdffit.terms.ndf`), directions ``wi``, ``wo`` and the
 microfacet normal ``wm``, batched over ``(..., 3)``, and return the batch shape ``(...)``.
 Every G2 form has the signature ``(ndf, wi, wo, wm)``; the correlated forms take the empirical
 ``λ(φ)`` as a keyword, so a variant is ``functools.partial(G2_direction_correlated,
 lambda_fn=lambda_van_ginneken)``. Passing any of them as ``g2=`` to
-:func:`brdffit.models.microfacet_specular` changes the masking of a lobe.
+:func:`brdffit.terms.microfacet.microfacet_specular` changes the masking of a lobe.
 
 Ordering (for the same ``Λ``): separable ≤ height-correlated ≤ height-direction correlated ≤
 ``min(G1(l), G1(v))``, and the direction-correlated form lies between separable and ``min``.

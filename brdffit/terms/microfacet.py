@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from .._math import chi_plus, cos_theta, dot, half_vector, safe_div
-from ..masking import G2_height_correlated
+from ._math import chi_plus, cos_theta, dot, half_vector, safe_div
+from .masking import G2_height_correlated
 
 
 def microfacet_specular(ndf, fresnel, wi, wo, *, g2=G2_height_correlated):
@@ -16,11 +16,12 @@ def microfacet_specular(ndf, fresnel, wi, wo, *, g2=G2_height_correlated):
                  {4\,|\mathbf n\cdot\mathbf l|\,|\mathbf n\cdot\mathbf v|}
 
     Args:
-        ndf: an NDF object (:mod:`brdffit.ndf`) giving ``D`` and ``Lambda``.
+        ndf: an NDF object (:mod:`brdffit.terms.ndf`) giving ``D`` and ``Lambda``.
         fresnel: a function of ``h·l`` returning reflectance, e.g.
-            ``functools.partial(brdffit.fresnel.schlick, f0)``; RGB gives an RGB lobe.
+            ``functools.partial(brdffit.terms.fresnel.schlick, f0)``; RGB gives an RGB lobe.
         wi, wo: unit directions ``(..., 3)``.
-        g2: a masking-shadowing form from :mod:`brdffit.masking` (height-correlated by default).
+        g2: a masking-shadowing form from :mod:`brdffit.terms.masking` (height-correlated by
+            default).
 
     Returns ``(..., 3)`` (or the Fresnel's trailing shape); zero unless both directions are above
     the horizon.

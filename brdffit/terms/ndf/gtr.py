@@ -76,7 +76,7 @@ class GTR(NDF):
     ``Lambda``: GTR is not shape-invariant and has no general closed-form Λ (RTR p. 345).
     When ``γ`` is a concrete 2 (a Python number or a concrete array, not a traced value) this
     is GGX's closed form, RTR eq. 9.42; otherwise it is the numerical Λ of
-    :mod:`brdffit.ndf.numerical` (weak white furnace, RTR 9.23/9.24), so inside a fit, where
+    :mod:`brdffit.terms.ndf.numerical` (weak white furnace, RTR 9.23/9.24), so inside a fit, where
     ``γ`` is traced, the numerical Λ is used for every ``γ`` including 2 (G1 within 1.0e-7 of
     the closed form there, measured over α ∈ [0.005, 1]; other γ: see that module) and
     ``∂Λ/∂γ`` stays correct.

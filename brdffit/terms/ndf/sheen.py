@@ -1,7 +1,7 @@
 r"""Cloth NDFs: the generalized velvet NDF (RTR eq. 9.73) and the Imageworks sheen NDF (RTR eq. 9.75).
 
 Both are "inverted" distributions, with their mass towards the horizon, and have no closed-form
-Smith ``Λ``; ``Lambda`` is the numerical one of :mod:`brdffit.ndf.numerical` (weak white
+Smith ``Λ``; ``Lambda`` is the numerical one of :mod:`brdffit.terms.ndf.numerical` (weak white
 furnace, APS 2000 eqs. 18 and 25), tabulated from the current parameters when the NDF is built.
 The Disney sheen (RTR eq. 9.72), a Schlick-shaped lobe rather than an NDF, is
 :func:`brdffit.models.disney.sheen_lobe`.
@@ -16,7 +16,7 @@ from .._math import chi_plus, safe_div
 from .base import NDF
 from .numerical import ProjectedAreaTable
 
-#: Numerical-Λ table sizes used by the cloth NDFs (see :mod:`brdffit.ndf.numerical`).
+#: Numerical-Λ table sizes used by the cloth NDFs (see :mod:`brdffit.terms.ndf.numerical`).
 N_THETA, N_QUAD = 64, 32
 
 

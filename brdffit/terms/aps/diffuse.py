@@ -17,7 +17,7 @@ of ``R`` (RTR eq. 9.57); this is also RTR eq. 9.65. With it the total directiona
 ``R₀, R₁`` the reflectances at ``f0 = 0`` and ``f0 = 1``, the paper's two tables (§5.2). They
 are computed in half-vector space: ``dω₂ = 4 (k₁h) dω_h`` (eq. 5), so
 ``R(k₁) = ∫ p F S (k₁h)(k₂n) dω_h`` over ``(k₂n) > 0`` with ``S`` from
-:mod:`brdffit.aps.specular` — the same shadowing form as the specular term it accompanies.
+:mod:`brdffit.terms.aps.specular` — the same shadowing form as the specular term it accompanies.
 
 Metal variant (§5.1): "ones replaced by ``f0``", ``ρ_d = f0``, and the factors
 ``(f0 − R(k))`` clamped at zero. The paper does not restate ``c`` for it; here the same

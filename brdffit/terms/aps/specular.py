@@ -90,8 +90,8 @@ def aps_specular(dist, table, f0, wi, wo, shadowing=UNCORRELATED):
     """APS specular BRDF (eq. 26, or eq. 14 with ``shadowing=CORRELATED``), Schlick F (eq. 31).
 
     Args:
-        dist: a distribution from :mod:`brdffit.aps.distributions`.
-        table: its :class:`~brdffit.aps.tables.GTable` (``build_g_table(dist, dtype)``).
+        dist: a distribution from :mod:`brdffit.terms.aps.distributions`.
+        table: its :class:`~brdffit.terms.aps.tables.GTable` (``build_g_table(dist, dtype)``).
         f0: normal-incidence reflectance, RGB ``(3,)`` (or scalar).
         wi, wo: unit directions ``(..., 3)``.
 

@@ -30,7 +30,7 @@ class GGX(NDF):
     root of ``a`` is needed (RTR p. 341).
 
     ``alpha_y`` defaults to ``alpha_x`` (isotropic). Both are clamped at
-    :data:`~brdffit.ndf.base.ALPHA_MIN`.
+    :data:`~brdffit.terms.ndf.base.ALPHA_MIN`.
     """
 
     alpha_x: jax.Array

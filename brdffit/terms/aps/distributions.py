@@ -4,7 +4,7 @@ A distribution is an :class:`equinox.Module` with a method ``p(h)`` (``(..., 3) 
 two static flags:
 
 * ``heightfield``: ``p`` lives on the upper hemisphere only (APS §2: then ``P(n) = 1``). The
-  integrals of :mod:`brdffit.aps.tables` then run over ``h·n > 0`` only, so ``p`` need not be
+  integrals of :mod:`brdffit.terms.aps.tables` then run over ``h·n > 0`` only, so ``p`` need not be
   zero below the horizon itself.
 * ``isotropic``: ``p`` depends on ``h_z`` only, so ``g(k)`` is tabulated over ``θ_k`` alone.
 
@@ -55,7 +55,7 @@ def _quad_weights(n_theta, n_phi, dtype):
 
 
 def hemisphere_integral(fn, dtype, n_theta=64, n_phi=64):
-    """``∫_{h_z > 0} fn(h) dω`` by :func:`~brdffit.aps.quadrature.polar_rule`."""
+    """``∫_{h_z > 0} fn(h) dω`` by :func:`~brdffit.terms.aps.quadrature.polar_rule`."""
     h, w = _quad_weights(n_theta, n_phi, dtype)
     return jnp.sum(w * fn(h))
 
@@ -95,7 +95,7 @@ class FunctionDistribution(Distribution):
 
 
 class NDFDistribution(Distribution):
-    """``p(h) = D(h)`` of an NDF from :mod:`brdffit.ndf` (e.g. GGX): the consistency check case.
+    """``p(h) = D(h)`` of an NDF from :mod:`brdffit.terms.ndf` (e.g. GGX): the consistency check.
 
     For a normalized NDF ``⟨⟨hn⟩⟩ = 1`` (RTR eq. 9.21) and ``P(k)`` (APS eq. 25) is Smith's G1
     (RTR eq. 9.24), so APS eq. 26 is the microfacet lobe (RTR eq. 9.34) with the separable G2

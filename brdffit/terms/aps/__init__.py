@@ -2,10 +2,12 @@
 
 A BRDF from *any* microfacet distribution ``p(h)``: :mod:`.distributions` (the ``p(h)``),
 :mod:`.quadrature` (rules on the sphere), :mod:`.tables` (``g(k)``, ``⟨⟨hn⟩⟩``, eqs. 18, 22, 25),
-:mod:`.specular` (eqs. 26 and 14), :mod:`.diffuse` (eqs. 28–30), :mod:`.models` (the whole BRDF
-and the registered models). Importing :mod:`brdffit.models` registers the models.
+:mod:`.specular` (eqs. 26 and 14), :mod:`.diffuse` (eqs. 28–30), :mod:`.brdf` (the whole BRDF,
+:func:`aps_brdf`, in three stages). The paper's distributions as registered models are in
+:mod:`brdffit.models.aps`.
 """
 
+from .brdf import aps_brdf
 from .diffuse import RTable, aps_diffuse, aps_diffuse_metal, build_r_table
 from .distributions import (
     AnisotropicGaussian,
@@ -39,6 +41,7 @@ __all__ = [
     "TiltedGaussian",
     "Uncorrelated",
     "Velvet",
+    "aps_brdf",
     "aps_diffuse",
     "aps_diffuse_metal",
     "aps_specular",

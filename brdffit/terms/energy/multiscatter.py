@@ -8,7 +8,7 @@ r"""Imageworks / Kulla–Conty multiple-scattering specular term, RTR eqs. 9.56�
 
 ``R_sF1`` is the directional albedo of the single-scattering lobe with ``F = 1`` and
 ``\overline{R_{sF1}}`` its cosine-weighted average (RTR eq. 9.57), both read from the
-precomputed :func:`brdffit.albedo_table.albedo_table` (32 × 33 over ``(α, μ)``, the
+precomputed :func:`brdffit.terms.energy.albedo_table.albedo_table` (32 × 33 over ``(α, μ)``, the
 Imageworks 32 × 32 of RTR p. 346). ``F̄ = 20/21 F₀ + 1/21`` for Schlick's Fresnel (RTR eq. 9.60,
 the ``p = 5``, ``F₉₀ = 1`` case of eq. 9.59).
 
@@ -30,11 +30,11 @@ from functools import partial
 
 import jax.numpy as jnp
 
-from ._math import chi_plus, cos_theta
+from .._math import chi_plus, cos_theta
+from ..fresnel import schlick
+from ..masking import G2_height_correlated
+from ..microfacet import microfacet_specular
 from .albedo_table import albedo_table
-from .fresnel import schlick
-from .masking import G2_height_correlated
-from .models.microfacet import microfacet_specular
 
 
 def schlick_average(f0):
@@ -43,7 +43,8 @@ def schlick_average(f0):
 
 
 def kulla_conty(table, alpha, f0, wi, wo, *, fresnel_power=1):
-    """``f_ms(l, v)`` of RTR eq. 9.56 from an :class:`~brdffit.albedo_table.AlbedoTable`, RGB ``(..., 3)``."""
+    """``f_ms(l, v)`` of RTR eq. 9.56, RGB ``(..., 3)``, from an
+    :class:`~brdffit.terms.energy.albedo_table.AlbedoTable`."""
     _, e_l = table.lookup(alpha, cos_theta(wi))
     _, e_v = table.lookup(alpha, cos_theta(wo))
     _, e_avg = table.average(alpha)

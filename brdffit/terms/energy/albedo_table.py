@@ -38,8 +38,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._math import safe_div
-from .masking import G2_height_correlated
+from .._math import safe_div
+from ..masking import G2_height_correlated
 
 ALPHA_RANGE = (1e-3, 1.0)
 
@@ -122,7 +122,7 @@ def _simpson_mu_average(e, n_mu):
 def albedo_table(ndf_factory, g2=G2_height_correlated, n_mu=33, n_alpha=32, n_y=64, n_phi=64) -> AlbedoTable:
     """The :class:`AlbedoTable` of the lobe ``ndf_factory(alpha)`` with masking ``g2`` (cached).
 
-    ``ndf_factory`` maps a roughness to an isotropic NDF (e.g. :class:`brdffit.ndf.GGX`).
+    ``ndf_factory`` maps a roughness to an isotropic NDF (e.g. :class:`brdffit.terms.ndf.GGX`).
     ``n_mu`` must be odd (Simpson's rule for the averages).
     """
     if n_mu % 2 == 0 or n_mu < 3:

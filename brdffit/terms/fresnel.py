@@ -4,7 +4,7 @@ Each reflectance function takes the cosine between the light (or view) direction
 microfacet normal, ``cos_d = wi · wm``, batched ``(...)``, and its optical parameters, which
 broadcast against ``cos_d[..., None]``: an RGB parameter of shape ``(3,)`` gives ``(..., 3)``, a
 scalar gives ``(..., 1)``. So every term composes with
-:func:`brdffit.models.microfacet_specular` through ``functools.partial(term, params...)``.
+:func:`brdffit.terms.microfacet.microfacet_specular` through ``functools.partial(term, params...)``.
 
 Optical constants are *relative*: ``eta = n_t / n_i`` (the medium the light refracts into over
 the medium it comes from; ``n_i = 1`` in air) and, for conductors, ``eta + i k``.
@@ -89,7 +89,7 @@ def conductor(eta, k, cos_d):
         \quad F = \tfrac12 (R_s + R_p)
 
     Real arithmetic keeps gradients in ``eta`` and ``k`` finite everywhere (square roots go
-    through :func:`~brdffit._math.safe_sqrt`). With ``k = 0`` it equals :func:`dielectric` for
+    through :func:`~brdffit.terms._math.safe_sqrt`). With ``k = 0`` it equals :func:`dielectric` for
     ``cos_d ≥ 0``. ``eta``, ``k``: per channel (scalar or RGB), ``cos_d`` is clamped to ``[0, 1]``.
     """
     c = jnp.clip(cos_d, 0.0, 1.0)[..., None]

@@ -1,19 +1,8 @@
-"""The APS 2000 BRDF for any distribution, and the paper's distributions as registered models.
+"""The paper's distributions as registered models of the APS 2000 generator.
 
-:func:`aps_brdf` is the whole model of APS 2000: specular term (eq. 26 or 14) plus the
-energy-conserving diffuse term (eqs. 28–30, or the metal variant), tables built from the
-current parameters. The registered models (``aps-gaussian`` eq. 34, ``aps-velvet`` eq. 35,
-``aps-satin`` §6.3, ``aps-vgroove`` §6.2) each take RGB ``f0`` and ``diffuse`` (ρ_d) plus the
-distribution's shape parameters.
-
-It is computed in three stages, which :func:`aps_brdf` (and every registered model's ``fn``)
-composes in one traced function:
-
-1. :func:`aps_prepare`: from the parameters, the tables ``g`` (eq. 18) and ``R₀, R₁`` (eq. 29)
-   and the constant ``c`` of eq. 30 (:class:`APSState`);
-2. :func:`aps_per_pair`: per direction pair, the quantities that do not depend on the colour
-   channel: ``p(h) S / 4`` with the visibility, ``(k₁·h)``, and ``R₀, R₁`` at ``k₁`` and ``k₂``;
-3. :func:`aps_combine`: the RGB BRDF from those (Schlick with RGB ``f0``, eq. 31; eq. 30).
+The registered models (``aps-gaussian`` eq. 34, ``aps-velvet`` eq. 35, ``aps-satin`` §6.3,
+``aps-vgroove`` §6.2) each take RGB ``f0`` and ``diffuse`` (ρ_d) plus the distribution's shape
+parameters; the BRDF itself is :func:`brdffit.terms.aps.brdf.aps_brdf`, in its three stages.
 
 The registered models declare the stages (``Model.stages``) so that
 :func:`brdffit.models.evaluate.evaluate_model` (fitted tables, figures) builds the tables once
@@ -26,88 +15,14 @@ built once, two programs), with the same results to rounding (``tests/test_aps.p
 
 from __future__ import annotations
 
-import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._math import chi_plus, cos_theta, dot, half_vector
-from ..fresnel import schlick
-from ..models.registry import Model, Param, register
-from .diffuse import RTable, build_r_table, coupled_scale, coupled_term
-from .distributions import AnisotropicGaussian, Velvet, satin, v_groove
-from .specular import CORRELATED, UNCORRELATED, specular_geometry
-from .tables import DEFAULT_RESOLUTION, GTable, Resolution, build_g_table
-
-
-class APSState(eqx.Module):
-    """Stage 1 of the APS BRDF: the distribution, its tables and the colour parameters.
-
-    ``rtable``, ``rho_d``, ``scale`` (``c`` of eq. 30, RGB) and ``white`` (1, or ``f0`` for
-    the metal variant) are ``None`` when the diffuse term is left out.
-    """
-
-    dist: object
-    table: GTable
-    f0: jax.Array
-    rtable: RTable | None = None
-    rho_d: jax.Array | None = None
-    scale: jax.Array | None = None
-    white: jax.Array | None = None
-
-
-def aps_prepare(dist, f0, diffuse, *, dtype, shadowing=UNCORRELATED, resolution=DEFAULT_RESOLUTION,
-                metal=False) -> APSState:
-    """Stage 1: tables of ``dist`` (eqs. 18, 29) and the constant ``c`` of eq. 30."""
-    f0 = jnp.asarray(f0)
-    table = build_g_table(dist, dtype, resolution)
-    if diffuse is None and not metal:
-        return APSState(dist, table, f0)
-    rtable = build_r_table(dist, table, dtype, resolution, shadowing)
-    white = f0 if metal else jnp.ones((), f0.dtype)
-    rho_d = f0 if metal else jnp.asarray(diffuse)
-    return APSState(dist, table, f0, rtable, rho_d, coupled_scale(rtable, f0, white), white)
-
-
-def aps_per_pair(state: APSState, wi, wo, shadowing=UNCORRELATED) -> dict:
-    """Stage 2: the channel-independent quantities of each pair (arrays of batch shape)."""
-    q = {
-        "geometry": specular_geometry(state.dist, state.table, wi, wo, shadowing),
-        "cos_d": dot(wi, half_vector(wi, wo)),
-    }
-    if state.rtable is not None:
-        q["r_in"], q["r_out"] = state.rtable.both(wi), state.rtable.both(wo)
-        q["vis"] = chi_plus(cos_theta(wi)) * chi_plus(cos_theta(wo))
-    return q
-
-
-def aps_combine(state: APSState, q: dict):
-    """Stage 3: ``ρ_s`` (eq. 26/14 with Schlick F, eq. 31) plus the coupled diffuse term
-    (eq. 30, or the metal variant), RGB ``(..., 3)``."""
-    out = schlick(state.f0, q["cos_d"]) * q["geometry"][..., None]
-    if state.rtable is None:
-        return out
-    r_in, r_out = RTable.mix(q["r_in"], state.f0), RTable.mix(q["r_out"], state.f0)
-    return out + coupled_term(state.rho_d, state.scale, state.white, r_in, r_out, q["vis"])
-
-
-def aps_brdf(dist, f0, diffuse, wi, wo, *, shadowing=UNCORRELATED, resolution=DEFAULT_RESOLUTION, metal=False):
-    """``ρ = ρ_s + ρ_diffuse`` of APS 2000 for the distribution ``dist``, RGB ``(..., 3)``.
-
-    Args:
-        dist: a :class:`~brdffit.aps.distributions.Distribution` (any ``p(h)``).
-        f0: Schlick normal reflectance (RGB).
-        diffuse: ρ_d (RGB) of eq. 30; ignored (``ρ_d = f0``) when ``metal=True``; ``None``
-            leaves the diffuse term out (and its table unbuilt).
-        shadowing: ``UNCORRELATED`` (eq. 26) or ``Correlated(width)`` (eq. 14).
-        resolution: table and quadrature sizes (:class:`~brdffit.aps.tables.Resolution`).
-        metal: use the metal variant of the diffuse term (§5.1).
-    """
-    f0 = jnp.asarray(f0)
-    dtype = jnp.result_type(wi, wo, f0)
-    state = aps_prepare(dist, f0, diffuse, dtype=dtype, shadowing=shadowing, resolution=resolution,
-                        metal=metal)
-    return aps_combine(state, aps_per_pair(state, wi, wo, shadowing))
+from ..terms.aps.brdf import aps_combine, aps_per_pair, aps_prepare
+from ..terms.aps.distributions import AnisotropicGaussian, Velvet, satin, v_groove
+from ..terms.aps.specular import CORRELATED, UNCORRELATED
+from ..terms.aps.tables import Resolution
+from .registry import Model, Param, register
 
 
 F0 = Param(
@@ -120,9 +35,9 @@ DIFFUSE = Param(
 )
 SIGMA_BOUNDS = (0.08, 1.0)
 
-#: Table sizes of the registered models (call :func:`aps_brdf` directly for others). Isotropic
-#: tables are 1-D (33 elevations) and cheap; anisotropic ones are 2-D (17 elevations × 24
-#: azimuths for g, 11 × 16 for R), sized so that one evaluation with its table builds stays
+#: Table sizes of the registered models (call :func:`~brdffit.terms.aps.aps_brdf` with others).
+#: Isotropic tables are 1-D (33 elevations) and cheap; anisotropic ones are 2-D (17 elevations ×
+#: 24 azimuths for g, 11 × 16 for R), sized so that one evaluation with its table builds stays
 #: near 0.1 s on a CPU core. Measured visibility P(k) (eq. 25) against much finer tables
 #: (65 × 96, doubled quadratures) at 4000 random directions: anisotropic Gaussian σ = 0.1/0.3
 #: within 0.35 % above 10° elevation and 2.3 % between 2° and 10° (bilinear interpolation in φ
