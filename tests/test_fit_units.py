@@ -16,7 +16,7 @@ from brdffit.fitting.data import CHUNK_CELLS, select
 from brdffit.fitting.losses import RELATIVE_FLOOR, huber_residual
 from brdffit.fitting.normal_form import compress, gram, normal_form
 from brdffit.fitting.problem import Problem
-from brdffit.fitting.setup import flat_log
+from brdffit.fitting.parameters import flat_log
 from brdffit.fitting.solvers import box_step, optimality, predicted_decrease
 from brdffit.fitting.transforms import at_bound, bounds_in_s, to_box, to_physical
 from data_formats import SampleSet

@@ -1,6 +1,6 @@
 """``fit``: least-squares fitting of a registered model to a measured table, with optimistix.
 
-The pipeline: select cells (:mod:`.data`) → starting point (:mod:`.init`, or the user's) →
+The pipeline: select cells (:mod:`.data`) → starting point (:mod:`.start`, or the user's) →
 box coordinates of the free scalars (:mod:`.transforms`) → the problem (:mod:`.problem`) →
 bounded optimistix solver on the Gauss–Newton normal form (:mod:`.normal_form`,
 :mod:`.solvers`), in stages (:func:`_solve_one`) → covariance and metrics
@@ -36,12 +36,12 @@ import optimistix as optx
 
 from ..errors import FitError, UnknownNameError
 from ..models.registry import get_model
-from . import init as init_mod
+from . import start as start_mod
 from .data import check_enough, select
 from .losses import DEFAULT_LOSS, get_loss
 from .normal_form import normal_form
 from .problem import Problem
-from .setup import assign, check_within, flat_bounds, flat_log
+from .parameters import assign, check_within, flat_bounds, flat_log
 from .solvers import (
     COST_NOISE,
     DEFAULT_SOLVER,
@@ -170,8 +170,8 @@ def _build_problem(model, loss, samples, fixed, init, bounds, dtype):
 def _start_point(model, sel, x0, lo, hi, free, fixed_idx, init):
     """Data-driven guess, then the user's ``init`` on top (fixed scalars keep their values)."""
     wi, wo, rgb, good = sel.host
-    feats = init_mod.measure(rgb, wi, wo, good)
-    guess = model.flatten(init_mod.guess(model, feats))
+    feats = start_mod.measure(rgb, wi, wo, good)
+    guess = model.flatten(start_mod.guess(model, feats))
     x = x0.copy()
     x[free] = guess[free]
     if init is not None:
@@ -420,7 +420,7 @@ def fit(
         t2 = time.perf_counter()
     finally:
         _PROGRESS["fn"] = None
-    from .finish import make_result
+    from .outcome import make_result
 
     return make_result(
         model=model, problem=problem, sel=sel, out=out, u0=z0, costs=costs,

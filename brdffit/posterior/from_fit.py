@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..fitting.losses import get_loss
 from ..fitting.problem import Problem
-from ..fitting.setup import flat_bounds, flat_log
+from ..fitting.parameters import flat_bounds, flat_log
 from ..fitting.transforms import bounds_in_s
 
 _HUBER = re.compile(r"^(?P<base>[a-z]+)\+huber\((?P<delta>[^)]+)\)$")

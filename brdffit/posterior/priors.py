@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError
-from ..fitting.setup import assign
+from ..fitting.parameters import assign
 
 #: Integer codes of the prior families inside the jitted log-density.
 _UNIFORM, _LOG_UNIFORM, _NORMAL = 0, 1, 2
