@@ -22,24 +22,13 @@ relative   ``ρ``, weight ``1/max(ρ, floor)``     every cell counts by its rela
 A robust variant of any loss (``huber=δ``) replaces ``r`` beyond ``|r| > δ`` by
 ``sign(r) sqrt(2δ|r| - δ²)``, so that ``r²/2`` becomes Huber's ``δ|r| - δ²/2`` there.
 
-Why ``log`` is the default (picked by experiment; ``tests/test_fit_cross.py`` keeps the
-evidence): a real-like table (a sharp lobe α = 0.03, F0 ≈ 0.8 over a weak broad lobe and a
-diffuse floor of 0.01–0.03; peaks in the thousands; 2% noise; 50 wild cells ×10; 80° cutoff)
-fitted by one GGX lobe from the default start and from another start (20,000 cells):
-
-* ``log``: α = 0.0308, F0 within 4% of the sharp lobe's, the broad lobe absorbed into the
-  diffuse term; the same answer from both starts;
-* ``linear``: the peak cells decide everything: the diffuse level collapses to 1e-4 in two
-  channels, and the second start fails to converge;
-* ``cosine``: with a sharper lobe (α = 0.01) the second start converged elsewhere (cost ×600);
-* ``relative``: every cell counts equally, so wild and grazing cells pull the lobe: F0 ends at
-  its upper bound (1.0) in the red channel.
-
-``log(1 + ρ cosθi)`` compresses the peak to a few units and is linear (``≈ ρ cosθi``) on the
-diffuse floor, so both regions count, and the cosine down-weights the grazing cells that Burley
-2012 §4.7 calls extrapolated. It is the weighting used in the MERL fitting literature (Löw et
-al. 2012, "BRDF models for accurate and efficient rendering of glossy surfaces"; the seed texts
-do not cover fitting losses, so this citation is from outside them).
+``log`` is the default: ``log(1 + ρ cosθi)`` compresses the peak to a few units and is linear
+(``≈ ρ cosθi``) on the diffuse floor, so both regions count, and the cosine down-weights the
+grazing cells that Burley 2012 §4.7 calls extrapolated. It is the weighting of the MERL fitting
+literature (Löw et al. 2012, "BRDF models for accurate and efficient rendering of glossy
+surfaces"; a citation from outside the seed texts, which do not cover fitting losses). The
+comparison of the four on a real-like table is in ``docs/design/fitting.md``;
+``tests/test_fit_cross.py`` keeps the evidence.
 """
 
 from __future__ import annotations
