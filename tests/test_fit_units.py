@@ -74,6 +74,8 @@ def test_huber_half_square_is_hubers_loss():
 def test_loss_names_and_errors():
     assert get_loss("log+huber").huber == 0.1
     assert get_loss("cosine", huber=2.0).label == "cosine+huber(2)"
+    for loss in (get_loss("cosine", huber=2.0), get_loss("log+huber", 0.05), LOSSES["linear"]):
+        assert get_loss(loss.label) == loss  # a result's label names its loss again
     with pytest.raises(UnknownNameError, match="linear") as e:
         get_loss("lgo")
     assert "'log'" in str(e.value)  # suggests the close match

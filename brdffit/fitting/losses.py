@@ -34,6 +34,7 @@ comparison of the four on a real-like table is in ``docs/design/fitting.md``;
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Callable
 
 import jax.numpy as jnp
@@ -127,20 +128,35 @@ LOSSES: dict[str, Loss] = {
 DEFAULT_LOSS = "log"
 
 
-def get_loss(loss, huber: float | None = None) -> Loss:
-    """A :class:`Loss` from a registry name (or a ``Loss``), optionally made robust.
+_ROBUST = re.compile(r"^huber(?:\((?P<delta>[^()]+)\))?$")
 
-    ``"log+huber"`` style names are accepted too (Huber threshold ``huber`` or 0.1).
+
+def _huber_of(robust: str) -> float | None:
+    """The threshold of ``huber(δ)`` (a :attr:`Loss.label`'s suffix), ``None`` for ``huber``;
+    ``ValueError`` for anything else."""
+    m = _ROBUST.match(robust)
+    if m is None:
+        raise ValueError(robust)
+    return None if m.group("delta") is None else float(m.group("delta"))
+
+
+def get_loss(loss, huber: float | None = None) -> Loss:
+    """A :class:`Loss` from a registry name or a label (or a ``Loss``), optionally made robust.
+
+    ``"log+huber"`` style names are accepted too (Huber threshold ``huber`` or 0.1), and so is
+    every :attr:`Loss.label` (``"log+huber(0.05)"``, what a ``FitResult`` records).
     """
     if isinstance(loss, Loss):
-        out = loss
-    else:
-        name = str(loss)
-        base, _, robust = name.partition("+")
-        if robust not in ("", "huber") or base not in LOSSES:
-            raise UnknownNameError("loss", name, list(LOSSES) + [f"{k}+huber" for k in LOSSES])
+        return loss if huber is None else loss.robust(huber)
+    name = str(loss)
+    base, _, robust = name.partition("+")
+    try:
+        delta = _huber_of(robust) if robust else None
         out = LOSSES[base]
-        if robust:
-            out = out.robust(0.1 if huber is None else huber)
-            huber = None
+    except (KeyError, ValueError):
+        raise UnknownNameError("loss", name, list(LOSSES) + [f"{k}+huber" for k in LOSSES]) from None
+    if robust and delta is None:
+        out, huber = out.robust(0.1 if huber is None else huber), None
+    elif robust:
+        out = out.robust(delta)
     return out if huber is None else out.robust(huber)

@@ -8,7 +8,6 @@ fixed scalars by flat name and the optimum ``x``; it does not record ``bounds``,
 from __future__ import annotations
 
 import dataclasses
-import re
 
 import jax
 import jax.numpy as jnp
@@ -20,17 +19,10 @@ from ..fitting.problem import Problem
 from ..fitting.parameters import flat_bounds, flat_log
 from ..fitting.transforms import bounds_in_s
 
-_HUBER = re.compile(r"^(?P<base>[a-z]+)\+huber\((?P<delta>[^)]+)\)$")
-
 
 def loss_of(result, loss=None):
     """The :class:`~brdffit.fitting.losses.Loss` of ``result`` (or ``loss`` when given)."""
-    if loss is not None:
-        return get_loss(loss)
-    m = _HUBER.match(result.loss)
-    if m:
-        return get_loss(m.group("base"), huber=float(m.group("delta")))
-    return get_loss(result.loss)
+    return get_loss(result.loss if loss is None else loss)
 
 
 def problem_from(result, model, loss, bounds=None, chunks: int = 1):
