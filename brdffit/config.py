@@ -54,10 +54,23 @@ from data_formats._files import NotRegularFileError, open_regular
 
 from .errors import ConfigError
 
+#: The most samples a subsample may ask for (the readers' limit, ``MAX_SAMPLES`` = 2^24).
+MAX_SUBSAMPLE = 2**24
+#: Ranges of the numeric options of :func:`brdffit.fit`: ``key -> (integer?, low, high,
+#: low included?, what to say)``. :func:`check_fit_options` is the one place that enforces them.
+FIT_OPTION_RANGES = {
+    "cutoff": (False, 0.0, 90.0, False, "degrees in (0, 90]"),
+    "seed": (True, 0, 2**32 - 1, True, "an integer in [0, 2^32 - 1]"),
+    "multistart": (True, 0, 1000, True, "an integer in [0, 1000]"),
+    "max_steps": (True, 1, 100_000, True, "an integer in [1, 100000]"),
+    "rtol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
+    "atol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
+    "ftol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
+}
 _SCALARS = {  # key -> (types, check, what the check wants); numeric ranges: check_fit_options
     "model": (str, None, "a model name"),
     "loss": (str, None, "a loss name"),
-    "cutoff": ((int, float), None, "degrees in (0, 90]"),
+    "cutoff": ((int, float), None, FIT_OPTION_RANGES["cutoff"][4]),
     "subsample": ((int, float), None, "a sample count or a fraction in (0, 1]"),
     "seed": (int, None, "a non-negative integer"),
     "multistart": (int, None, "a non-negative integer"),
@@ -72,19 +85,6 @@ _SOLVER = {
     "precision": (str, lambda v: v in ("float64", "float32"), '"float64" or "float32"'),
 }
 
-#: The most samples a subsample may ask for (the readers' limit, ``MAX_SAMPLES`` = 2^24).
-MAX_SUBSAMPLE = 2**24
-#: Ranges of the numeric options of :func:`brdffit.fit`: ``key -> (integer?, low, high,
-#: low included?, what to say)``. :func:`check_fit_options` is the one place that enforces them.
-FIT_OPTION_RANGES = {
-    "cutoff": (False, 0.0, 90.0, False, "degrees in (0, 90]"),
-    "seed": (True, 0, 2**32 - 1, True, "an integer in [0, 2^32 - 1]"),
-    "multistart": (True, 0, 1000, True, "an integer in [0, 1000]"),
-    "max_steps": (True, 1, 100_000, True, "an integer in [1, 100000]"),
-    "rtol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
-    "atol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
-    "ftol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
-}
 #: Ranges of the posterior-sampling options (``brdffit fit --mcmc``), checked the same way.
 #: The chain holds ``walkers * steps * parameters`` doubles: 10^4 x 10^5 x 10 would be 80 GB,
 #: so the product is bounded too (:data:`MAX_CHAIN_VALUES`).
