@@ -42,14 +42,15 @@ def sample_pairs(n: int = 60000, *, cutoff: float = 80.0, seed: int = 0):
 
 
 def _starts(native, features) -> list[dict]:
-    """Two starting points for ``native`` from data-driven features: dielectric and metal."""
-    rough = float(np.clip(np.sqrt(features.alpha), 0.05, 0.95))
+    """Two starting points for ``native`` from data-driven features: the dielectric and the
+    metal reading (:func:`brdffit.models.starts.metallic_roughness`)."""
+    from ..models.starts import metallic_roughness
+
     starts = []
     for metal in (False, True):
-        color = np.clip(features.f0 if metal else features.diffuse, 0.02, 0.98)
-        p = {"base_color": color, "metallic": 0.9 if metal else 0.1, "roughness": rough,
-             "specular": 0.5, "alpha": features.alpha, "alpha_u": features.alpha,
-             "alpha_v": features.alpha, "specular_reflectance": np.clip(features.f0, 0.02, 0.98)}
+        p = {**metallic_roughness(features, metal), "specular": 0.5, "alpha": features.alpha,
+             "alpha_u": features.alpha, "alpha_v": features.alpha,
+             "specular_reflectance": np.clip(features.f0, 0.02, 0.98)}
         starts.append({k: v for k, v in p.items() if k in native.names})
     return starts
 
