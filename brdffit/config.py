@@ -165,7 +165,8 @@ class FitOptions:
 
     ``solver`` holds the solver name; ``rtol``, ``atol``, ``ftol``, ``max_steps`` its
     tolerances, ``precision`` the model evaluation's dtype; ``covariance`` how standard errors
-    are estimated.
+    are estimated; ``scan`` whether the start scan runs (Python only: presets do not set it).
+    ``brdffit.fit(table, model, options)`` takes it as it is.
     ``init`` and ``fixed`` map parameter names to a number or an RGB triple; ``bounds`` maps
     parameter names to ``(lower, upper)``. ``sources`` lists the presets merged in.
     """
@@ -183,6 +184,7 @@ class FitOptions:
     ftol: float | None = None
     precision: str | None = None
     covariance: str | None = None
+    scan: bool | None = None
     init: Mapping = dataclasses.field(default_factory=dict)
     fixed: Mapping = dataclasses.field(default_factory=dict)
     bounds: Mapping = dataclasses.field(default_factory=dict)
@@ -211,7 +213,7 @@ class FitOptions:
     def fit_kwargs(self) -> dict:
         """Keyword arguments for :func:`brdffit.fit`: only what was set (the model excluded)."""
         keys = ("loss", "solver", "cutoff", "subsample", "seed", "multistart",
-                "rtol", "atol", "ftol", "max_steps", "precision", "covariance")
+                "rtol", "atol", "ftol", "max_steps", "precision", "covariance", "scan")
         kwargs = {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
         for k in ("init", "fixed", "bounds"):
             if getattr(self, k):

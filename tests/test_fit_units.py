@@ -394,6 +394,35 @@ def test_result_fields_progress_and_fixed(small_fit):
     assert "alpha" in res.summary() and "(fixed)" in res.summary()
 
 
+def test_two_fits_in_two_threads_each_get_only_their_own_events():
+    """Step events come from inside the compiled solve (``jax.debug.callback``, possibly on
+    another thread); each must still reach the callback of the fit that made it."""
+    import threading
+
+    tables = [ggx_samples(3000, {"alpha": 0.15}, seed=5, name="a"),
+              ggx_samples(3000, {"alpha": 0.4, "f0": [0.3, 0.2, 0.1]}, seed=6, name="b")]
+
+    def run(table, events, barrier=None):
+        if barrier is not None:
+            barrier.wait()
+        return brdffit.fit(table, "ggx", progress=lambda e, i: events.append((e, i)))
+
+    alone = []
+    for table in tables:
+        alone.append([])
+        run(table, alone[-1])
+    together = [[], []]
+    barrier = threading.Barrier(2)
+    threads = [threading.Thread(target=run, args=(t, ev, barrier)) for t, ev in zip(tables, together)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for solo, both in zip(alone, together):
+        assert sum(e.endswith("step") for e, _ in solo) > 3
+        assert both == solo  # the same events, in the same order, none of the other fit's
+
+
 def test_result_json_round_trip(small_fit, tmp_path):
     _, res, _ = small_fit
     res.stderr["alpha"] = float("nan")  # NaNs (at-bound scalars) must survive as null

@@ -199,7 +199,7 @@ def run(args) -> int:
         progress = Progress(quiet=args.quiet)
         progress(f"fitting {model.name} to {args.file}")
         try:
-            result = fit(data, model, **options.fit_kwargs(), throw=False,
+            result = fit(data, model, options, throw=False,
                          progress=progress if progress.enabled else None)
             result = dataclasses.replace(result, message=cli_words(result.message), provenance={
                 **result.provenance, "command": "brdffit fit", "config": list(options.sources)})
@@ -249,7 +249,7 @@ def _fit_several(args, models, options, outputs) -> int:
     for model in models:
         progress(f"fitting {model.name} to {args.file}")
         try:
-            result = fit(data, model, **options.fit_kwargs(), throw=False,
+            result = fit(data, model, options, throw=False,
                          progress=progress if progress.enabled else None)
         except BrdffitError as exc:  # the library's advice, in flags
             raise UsageError(cli_words(str(exc))) from exc

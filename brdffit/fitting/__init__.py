@@ -7,7 +7,7 @@ Public surface: :func:`fit`, :class:`FitResult`, the loss registry (:data:`LOSSE
 from .data import Subsample
 from .losses import DEFAULT_LOSS, LOSSES, Loss, get_loss
 from .result import FitResult, FittedModel
-from .solve import fit
+from .fitter import fit
 from .solvers import DEFAULT_SOLVER, SOLVERS
 
 __all__ = [

@@ -191,7 +191,7 @@ def _device(wi, wo, rgb, sw, *, loss: Loss, chunks: int, dtype: str) -> FitData:
     Interleaving: block ``j`` holds the rows ``j, j + chunks, j + 2 chunks, ...`` of the
     (ascending, padded) selection, in the MERL layout's ``θh``-major order, so any leading blocks
     are an evenly spread subset of the table, specular peak included, which the warm start of
-    :func:`brdffit.fitting.solve.fit` fits first. The padding cells (zero weight) are the last
+    :mod:`brdffit.fitting.stages` fits first. The padding cells (zero weight) are the last
     rows before interleaving; a single block keeps the order.
     """
 

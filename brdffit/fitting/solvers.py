@@ -231,9 +231,9 @@ class Optimality(optx.AbstractLeastSquaresSolver):
     After each accepted step, at the point ``z`` just evaluated, :func:`optimality` gives the
     fraction ``ω`` of the cost that the undamped bounded Gauss–Newton step could still remove;
     ``ω ≤ ftol`` ends the solve there (that point's ``aux``, ``JᵀJ`` and the sandwich meat,
-    belong to the answer). The inner solver's own Cauchy test also ends it; :func:`_solve`
-    in :mod:`brdffit.fitting.solve` re-evaluates ``ω`` at the end point and reports success only
-    when ``ω ≤ ftol``. Everything else (steps, damping, acceptance) is the inner solver's.
+    belong to the answer). The inner solver's own Cauchy test also ends it;
+    :func:`brdffit.fitting.solve.solve` re-evaluates ``ω`` at the end point and the fit reports
+    success only when ``ω ≤ ftol``. Everything else (steps, damping, acceptance) is the inner solver's.
     """
 
     inner: optx.AbstractLeastSquaresSolver

@@ -16,7 +16,8 @@ A model maps these features onto its parameters itself when it declares a start 
 (``Model.start``, e.g. Disney's ``base_color``/``metallic``/``roughness``/``specular``);
 otherwise they are mapped by parameter name (``diffuse``, ``f0*``, ``alpha*``). Any parameter
 the map does not name keeps its declared default. The maps are conventions, not formulas of the
-sources, and only a starting point for the solver; the user's ``init`` goes on top.
+sources, and only a starting point for the solver; the user's ``init`` goes on top
+(:func:`start_point`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+
+from .parameters import assign, check_within
 
 GGX_HALF_WIDTH = np.sqrt(np.sqrt(2.0) - 1.0)
 
@@ -128,3 +131,23 @@ def guess(model, feat: Features) -> dict:
             width = p.upper - p.lower
             out[p.name] = np.clip(v, p.lower + 1e-3 * width, p.upper - 1e-3 * width)
     return out
+
+
+def start_point(model, host, scalars, x0, init=None) -> np.ndarray:
+    """The flat starting vector: ``x0`` (defaults and fixed values) with the free scalars at the
+    data-driven :func:`guess` on the selected cells ``host`` (``(wi, wo, rgb, good)``), then the
+    user's ``init`` (name → value, or a previous ``FitResult``) on top; fixed scalars keep their
+    values."""
+    wi, wo, rgb, good = host
+    start = model.flatten(guess(model, measure(rgb, wi, wo, good)))
+    free = list(scalars.free)
+    x = x0.copy()
+    x[free] = start[free]
+    if init is not None:
+        user = x.copy()
+        idx = assign(model, getattr(init, "params", init), user, "init value of")
+        check_within(model, user, scalars.lo, scalars.hi, idx, "init")
+        held = set(scalars.fixed)
+        keep = [i for i in idx if i not in held]
+        x[keep] = user[keep]
+    return x
