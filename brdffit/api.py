@@ -74,7 +74,7 @@ def resolved_options(model, options: dict) -> dict:
     """Every option of the fit: the given ones over the code's defaults, with the solver
     tolerances' dtype-dependent defaults and the default precision filled in (float64: the
     call runs with x64 enabled)."""
-    from .fitting.options import FIT_DEFAULTS, tolerances
+    from .fitting import FIT_DEFAULTS, tolerances
     from .models.registry import get_model
 
     merged = {**FIT_DEFAULTS, **options}
@@ -134,13 +134,12 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
 
     import jax
 
-    from .fitting import fit as fit_table
-    from .fitting.options import fit_options
+    from . import fitting
     from .grey import is_monochrome, tie_options, untie
     from .models.registry import get_model
     from .progress import resolve
 
-    options = fit_options(options, **kwargs)  # checked before the input is touched
+    options = fitting.fit_options(options, **kwargs)  # checked before the input is touched
     data, path = load(table)
     solve_options, tied = options, {}
     if is_monochrome(data):
@@ -148,7 +147,7 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
     callback, bar = resolve(progress)
     try:
         with jax.enable_x64(True):
-            result = fit_table(data, model, progress=callback, throw=throw, **solve_options)
+            result = fitting.fit(data, model, progress=callback, throw=throw, **solve_options)
     finally:
         if bar is not None:
             bar.close()

@@ -64,8 +64,7 @@ def approximate(model, params, native, *, n: int = 40000, cutoff: float = 80.0, 
     parameters of :data:`HELD` to fit as well (e.g. ``("clearcoat", "clearcoat_gloss")`` for a
     coated source). ``subsample`` cells of the ``≈ 0.6 n`` pairs kept are fitted (all if fewer).
     """
-    from ..fitting import fit
-    from ..fitting.start import measure
+    from ..fitting import fit, measure
     from ..models import get_model
     from ..models.evaluate import evaluate_model
 

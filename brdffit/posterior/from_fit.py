@@ -10,10 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigError
-from ..fitting.losses import get_loss
-from ..fitting.options import default_precision
-from ..fitting.parameters import Scalars
-from ..fitting.problem import Problem
+from ..fitting import Problem, Scalars, default_precision, get_loss
 
 
 def loss_of(result, loss=None):

@@ -24,10 +24,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError
+from ..fitting import FitResult, Subsample, check_enough, default_precision, select
 from ..fitting import fit as run_fit
-from ..fitting.data import Subsample, check_enough, select
-from ..fitting.options import default_precision
-from ..fitting.result import FitResult
 from ..models.registry import get_model
 from .defaults import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_SUBSAMPLE_CELLS, DEFAULT_WALKERS
 from .diagnostics import check, diagnose
