@@ -1,5 +1,5 @@
 """Speed: APS 2000 models over a full MERL grid (90 × 90 × 180 = 1,458,000 direction pairs)
-against the closed-form ``ggx`` model (issue 7: goal within 3× once the tables are built).
+against the closed-form ``ggx`` model (goal: within 3× once the tables are built).
 
 Two ways of evaluating are timed, each for ``ggx``, the isotropic ``aps-velvet`` (the MERL
 case: 1-D tables) and the anisotropic ``aps-gaussian`` (2-D tables):

@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/bench_fit.py [--precision float64|float32] [--no-scipy]
         [--no-disney] [--repeat 3]
 
-What it does (issue 4, "Speed"):
+What it does:
 
 1. Synthesizes a full 90×90×180 MERL table (about 1.1 M valid cells) from ``ggx`` with known
    parameters and 2% multiplicative noise (seeded), through ``data_formats.merl.synthesize``.
@@ -147,12 +147,13 @@ def bench_ggx(args):
 def warm_blocks(n_cells: int) -> str:
     """The warm-start share :func:`brdffit.fit` uses for ``n_cells`` (text for the report)."""
     from brdffit.fitting.data import CHUNK_CELLS
-    from brdffit.fitting.solve import WARM_FRACTION, WARM_MIN_CHUNKS
+    from brdffit.fitting.stages import plan
 
     chunks = -(-n_cells // CHUNK_CELLS)
-    if chunks < WARM_MIN_CHUNKS:
+    warm = dict(plan(chunks, scan=False)).get("warm")
+    if warm is None:
         return "no blocks (table too small)"
-    return f"{max(1, round(chunks * WARM_FRACTION))} of {chunks} blocks of {CHUNK_CELLS} cells"
+    return f"{warm} of {chunks} blocks of {CHUNK_CELLS} cells"
 
 
 def bench_disney(args):

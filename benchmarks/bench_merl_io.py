@@ -7,7 +7,7 @@ Run by hand from the repository root::
 Writes a full-size synthetic table (90 x 90 x 180, 34,992,012 bytes) to a temporary folder,
 then reports, for ``read_merl`` (default and ``mmap=True``), ``lookup_nearest`` and
 ``lookup_linear``, the best of ``--repeat`` wall times and CPU times, each beside its goal
-(issue 2: read <= 0.15 s, each lookup <= 0.3 s) and the ratio wall/goal (at most 1 meets the
+(goals: read <= 0.15 s, each lookup <= 0.3 s) and the ratio wall/goal (at most 1 meets the
 goal; the exit code is 1 when a figure misses). The file is read once before timing, so the
 read figures are from the page cache, not the disk. On a shared machine compare the CPU column
 too: it leaves out the time spent waiting for a core.

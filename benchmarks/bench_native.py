@@ -42,7 +42,7 @@ import brdffit
 from brdffit.config import find_config, load_config
 from brdffit.export import export
 from brdffit.export.approximate import _starts
-from brdffit.fitting.init import measure
+from brdffit.fitting import measure
 
 ROOT = Path(__file__).resolve().parent.parent
 REALISTIC = ROOT.parent / "shared" / "realistic"

@@ -8,7 +8,7 @@ Without ``--file`` it writes a full-size synthetic ``ggx`` table (90 x 90 x 180)
 noise (0.01) on ``log(1 + ρ cosθi)`` to a temporary folder and reads it back. It then times
 the whole default call (least-squares fit on the default subsample, compilation, sampling with
 the default walkers and steps), each part separately, and the CPU time of the process, beside
-the goal (issue 6: a default ``ggx`` run under 60 s on a 2-core machine); the exit code is 1
+the goal (a default ``ggx`` run under 60 s on a 2-core machine); the exit code is 1
 when the wall time misses it. It also reports the chain diagnostics (acceptance, the largest
 τ and whether the chain is at least 50 τ long), so a default that is fast but untrustworthy
 shows up too. On a shared machine compare the CPU column: it leaves out waiting for a core.

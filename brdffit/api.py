@@ -1,4 +1,4 @@
-"""``brdffit.fit``: the notebook-facing fit, around :func:`brdffit.fitting.solve.fit`.
+"""``brdffit.fit``: the notebook-facing fit, around :func:`brdffit.fitting.fit`.
 
 What it adds to the low-level fit (whose arguments it passes on unchanged):
 
@@ -18,20 +18,11 @@ What it adds to the low-level fit (whose arguments it passes on unchanged):
 from __future__ import annotations
 
 import datetime
-import inspect
 import os
 import platform
 from pathlib import Path
 
 from .io import is_path, read_path, sha256
-
-
-def _fit_defaults() -> dict:
-    from .fitting import solve
-
-    sig = inspect.signature(solve.fit)
-    return {k: p.default for k, p in sig.parameters.items()
-            if p.kind is p.KEYWORD_ONLY and k not in ("throw", "progress")}
 
 
 def _jsonable(value):
@@ -83,14 +74,14 @@ def resolved_options(model, options: dict) -> dict:
     """Every option of the fit: the given ones over the code's defaults, with the solver
     tolerances' dtype-dependent defaults and the default precision filled in (float64: the
     call runs with x64 enabled)."""
-    from .fitting.solve import _tolerances
+    from .fitting import FIT_DEFAULTS, tolerances
     from .models.registry import get_model
 
-    merged = {**_fit_defaults(), **options}
+    merged = {**FIT_DEFAULTS, **options}
     precision = merged.get("precision") or "float64"
     merged["precision"] = precision
-    merged["rtol"], merged["atol"], merged["ftol"] = _tolerances(
-        merged.get("rtol"), merged.get("atol"), merged.get("ftol"), precision)
+    merged["rtol"], merged["atol"], merged["ftol"] = tolerances(
+        precision, merged.get("rtol"), merged.get("atol"), merged.get("ftol"))
     merged["model"] = get_model(model).name
     return _jsonable(merged)
 
@@ -118,42 +109,37 @@ def load(table):
     return table, None
 
 
-def fit(table, model, *, progress=None, throw: bool = True, **options):
-    """Fit ``model`` to ``table``: :func:`brdffit.fitting.solve.fit` with a path accepted,
-    float64 enabled for the call, ``progress=True`` as a progress bar, and the provenance
-    recorded in the result.
+def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwargs):
+    """Fit ``model`` to ``table``: :func:`brdffit.fitting.fit` with a path accepted, float64
+    enabled for the call, ``progress=True`` as a progress bar, and the provenance recorded in
+    the result.
 
     Args:
         table: a path (``str`` or ``PathLike``; ``.binary`` MERL table, ``.csv``/``.npz`` sample
             list) or anything with ``.to_samples()``.
         model: a registry name or a :class:`~brdffit.models.Model`. Monochrome data (a
             sample list with one ``value`` column) fit its grey variant (:mod:`brdffit.grey`).
+        options: a :class:`~brdffit.config.FitOptions` (e.g. a preset from
+            :func:`brdffit.config.load_config`) or a mapping of option names; ``kwargs``
+            override it, option by option.
         progress: ``True`` (a ``tqdm.auto`` bar), ``None``/``False``, or a callable
-            ``progress(event, info)`` (events in :func:`brdffit.fitting.solve.fit`).
+            ``progress(event, info)`` (events in :func:`brdffit.fitting.fit`).
         throw: raise :class:`~brdffit.errors.FitError` when the fit does not converge.
-        **options: every other keyword of :func:`brdffit.fitting.solve.fit` (``loss``,
-            ``solver``, ``init``, ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``,
-            ``multistart``, ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
-            ``covariance``).
+        **kwargs: the options of :func:`brdffit.fitting.fit` (``loss``, ``solver``, ``init``,
+            ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,
+            ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
+            ``covariance``; :class:`brdffit.fitting.Settings` describes each).
     """
     import dataclasses
 
     import jax
 
-    from .fitting import solve
+    from . import fitting
     from .grey import is_monochrome, tie_options, untie
     from .models.registry import get_model
     from .progress import resolve
 
-    unknown = sorted(set(options) - set(_fit_defaults()))
-    if unknown:
-        raise TypeError(
-            f"brdffit.fit() got unknown option(s) {', '.join(unknown)}; valid options: "
-            f"{', '.join(sorted(_fit_defaults()))}, progress, throw"
-        )
-    from .config import check_fit_options
-
-    check_fit_options(options)  # before the input is touched
+    options = fitting.fit_options(options, **kwargs)  # checked before the input is touched
     data, path = load(table)
     solve_options, tied = options, {}
     if is_monochrome(data):
@@ -161,7 +147,7 @@ def fit(table, model, *, progress=None, throw: bool = True, **options):
     callback, bar = resolve(progress)
     try:
         with jax.enable_x64(True):
-            result = solve.fit(data, model, progress=callback, throw=throw, **solve_options)
+            result = fitting.fit(data, model, progress=callback, throw=throw, **solve_options)
     finally:
         if bar is not None:
             bar.close()

@@ -54,10 +54,23 @@ from data_formats._files import NotRegularFileError, open_regular
 
 from .errors import ConfigError
 
+#: The most samples a subsample may ask for (the readers' limit, ``MAX_SAMPLES`` = 2^24).
+MAX_SUBSAMPLE = 2**24
+#: Ranges of the numeric options of :func:`brdffit.fit`: ``key -> (integer?, low, high,
+#: low included?, what to say)``. :func:`check_fit_options` is the one place that enforces them.
+FIT_OPTION_RANGES = {
+    "cutoff": (False, 0.0, 90.0, False, "degrees in (0, 90]"),
+    "seed": (True, 0, 2**32 - 1, True, "an integer in [0, 2^32 - 1]"),
+    "multistart": (True, 0, 1000, True, "an integer in [0, 1000]"),
+    "max_steps": (True, 1, 100_000, True, "an integer in [1, 100000]"),
+    "rtol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
+    "atol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
+    "ftol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
+}
 _SCALARS = {  # key -> (types, check, what the check wants); numeric ranges: check_fit_options
     "model": (str, None, "a model name"),
     "loss": (str, None, "a loss name"),
-    "cutoff": ((int, float), None, "degrees in (0, 90]"),
+    "cutoff": ((int, float), None, FIT_OPTION_RANGES["cutoff"][4]),
     "subsample": ((int, float), None, "a sample count or a fraction in (0, 1]"),
     "seed": (int, None, "a non-negative integer"),
     "multistart": (int, None, "a non-negative integer"),
@@ -72,19 +85,6 @@ _SOLVER = {
     "precision": (str, lambda v: v in ("float64", "float32"), '"float64" or "float32"'),
 }
 
-#: The most samples a subsample may ask for (the readers' limit, ``MAX_SAMPLES`` = 2^24).
-MAX_SUBSAMPLE = 2**24
-#: Ranges of the numeric options of :func:`brdffit.fit`: ``key -> (integer?, low, high,
-#: low included?, what to say)``. :func:`check_fit_options` is the one place that enforces them.
-FIT_OPTION_RANGES = {
-    "cutoff": (False, 0.0, 90.0, False, "degrees in (0, 90]"),
-    "seed": (True, 0, 2**32 - 1, True, "an integer in [0, 2^32 - 1]"),
-    "multistart": (True, 0, 1000, True, "an integer in [0, 1000]"),
-    "max_steps": (True, 1, 100_000, True, "an integer in [1, 100000]"),
-    "rtol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
-    "atol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
-    "ftol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
-}
 #: Ranges of the posterior-sampling options (``brdffit fit --mcmc``), checked the same way.
 #: The chain holds ``walkers * steps * parameters`` doubles: 10^4 x 10^5 x 10 would be 80 GB,
 #: so the product is bounded too (:data:`MAX_CHAIN_VALUES`).
@@ -165,7 +165,8 @@ class FitOptions:
 
     ``solver`` holds the solver name; ``rtol``, ``atol``, ``ftol``, ``max_steps`` its
     tolerances, ``precision`` the model evaluation's dtype; ``covariance`` how standard errors
-    are estimated.
+    are estimated; ``scan`` whether the start scan runs (Python only: presets do not set it).
+    ``brdffit.fit(table, model, options)`` takes it as it is.
     ``init`` and ``fixed`` map parameter names to a number or an RGB triple; ``bounds`` maps
     parameter names to ``(lower, upper)``. ``sources`` lists the presets merged in.
     """
@@ -183,6 +184,7 @@ class FitOptions:
     ftol: float | None = None
     precision: str | None = None
     covariance: str | None = None
+    scan: bool | None = None
     init: Mapping = dataclasses.field(default_factory=dict)
     fixed: Mapping = dataclasses.field(default_factory=dict)
     bounds: Mapping = dataclasses.field(default_factory=dict)
@@ -211,7 +213,7 @@ class FitOptions:
     def fit_kwargs(self) -> dict:
         """Keyword arguments for :func:`brdffit.fit`: only what was set (the model excluded)."""
         keys = ("loss", "solver", "cutoff", "subsample", "seed", "multistart",
-                "rtol", "atol", "ftol", "max_steps", "precision", "covariance")
+                "rtol", "atol", "ftol", "max_steps", "precision", "covariance", "scan")
         kwargs = {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
         for k in ("init", "fixed", "bounds"):
             if getattr(self, k):

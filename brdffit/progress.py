@@ -6,7 +6,7 @@ Both :func:`brdffit.fit` and :func:`brdffit.sample_posterior` take ``progress``:
 * ``True``: a progress bar from ``tqdm.auto`` (a text bar on a terminal, a widget in Jupyter),
   written to ``sys.stderr``;
 * a callable ``progress(event, info)``: called with the event name and a dict (the fitter's
-  events are listed in :func:`brdffit.fitting.solve.fit`; the sampler sends ``sample-step``
+  events are listed in :func:`brdffit.fitting.fit`; the sampler sends ``sample-step``
   with ``step`` and ``of``).
 
 :func:`resolve` turns the argument into a callable or ``None``, and :class:`Bar` is the

@@ -1,4 +1,4 @@
-"""Cross-model fits on real-like tables (issue 4, "Real measured tables are harder").
+"""Cross-model fits on real-like tables: real measured tables are harder than synthetic ones.
 
 Tables are made by one model and fitted by another (no analytic model matches real data), with 2%
 multiplicative noise and a few wild cells (×10), on the full MERL grid with an 80° cutoff. Each

@@ -1,4 +1,4 @@
-"""Parameter recovery on synthetic MERL-layout tables written to disk and read back (issue 4).
+"""Parameter recovery on synthetic MERL-layout tables written to disk and read back.
 
 Every table is the full 90×90×180 grid, made with ``data_formats.merl.synthesize`` from known
 parameters, written with ``write_merl`` and read with ``read_merl``. Fits run on a seeded random
@@ -93,7 +93,7 @@ def rel_errors(model, result, truth):
 )
 def test_noise_free_recovery_from_default_init(tmp_path_factory, name, label, truth):
     if name not in brdffit.available_models():
-        pytest.fail(f"model {name!r} is not registered (issue 3 provides it)")
+        pytest.fail(f"model {name!r} is not registered")
     table = merl_table(tmp_path_factory, name, label, truth)
     model = brdffit.get_model(name)
     res = brdffit.fit(table, name, subsample=SUB, fixed=fixed_for(name, truth))

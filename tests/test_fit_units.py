@@ -16,7 +16,7 @@ from brdffit.fitting.data import CHUNK_CELLS, select
 from brdffit.fitting.losses import RELATIVE_FLOOR, huber_residual
 from brdffit.fitting.normal_form import compress, gram, normal_form
 from brdffit.fitting.problem import Problem
-from brdffit.fitting.setup import flat_log
+from brdffit.fitting.parameters import flat_log
 from brdffit.fitting.solvers import box_step, optimality, predicted_decrease
 from brdffit.fitting.transforms import at_bound, bounds_in_s, to_box, to_physical
 from data_formats import SampleSet
@@ -74,6 +74,8 @@ def test_huber_half_square_is_hubers_loss():
 def test_loss_names_and_errors():
     assert get_loss("log+huber").huber == 0.1
     assert get_loss("cosine", huber=2.0).label == "cosine+huber(2)"
+    for loss in (get_loss("cosine", huber=2.0), get_loss("log+huber", 0.05), LOSSES["linear"]):
+        assert get_loss(loss.label) == loss  # a result's label names its loss again
     with pytest.raises(UnknownNameError, match="linear") as e:
         get_loss("lgo")
     assert "'log'" in str(e.value)  # suggests the close match
@@ -390,6 +392,35 @@ def test_result_fields_progress_and_fixed(small_fit):
     dcos = (pred - s.rgb) * ci * s.wo[:, 2:3]
     assert res.metrics["rmse_cosine"] == pytest.approx(np.sqrt(np.mean(dcos**2)), rel=1e-9)
     assert "alpha" in res.summary() and "(fixed)" in res.summary()
+
+
+def test_two_fits_in_two_threads_each_get_only_their_own_events():
+    """Step events come from inside the compiled solve (``jax.debug.callback``, possibly on
+    another thread); each must still reach the callback of the fit that made it."""
+    import threading
+
+    tables = [ggx_samples(3000, {"alpha": 0.15}, seed=5, name="a"),
+              ggx_samples(3000, {"alpha": 0.4, "f0": [0.3, 0.2, 0.1]}, seed=6, name="b")]
+
+    def run(table, events, barrier=None):
+        if barrier is not None:
+            barrier.wait()
+        return brdffit.fit(table, "ggx", progress=lambda e, i: events.append((e, i)))
+
+    alone = []
+    for table in tables:
+        alone.append([])
+        run(table, alone[-1])
+    together = [[], []]
+    barrier = threading.Barrier(2)
+    threads = [threading.Thread(target=run, args=(t, ev, barrier)) for t, ev in zip(tables, together)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for solo, both in zip(alone, together):
+        assert sum(e.endswith("step") for e, _ in solo) > 3
+        assert both == solo  # the same events, in the same order, none of the other fit's
 
 
 def test_result_json_round_trip(small_fit, tmp_path):

@@ -204,6 +204,6 @@ def _write_text(path, text: str) -> None:
 
 
 def _write_json(path, obj) -> None:
-    from ..fitting.result import _json_safe
+    from ..fitting import json_safe
 
-    _write_text(path, json.dumps(_json_safe(obj), indent=1) + "\n")
+    _write_text(path, json.dumps(json_safe(obj), indent=1) + "\n")

@@ -18,20 +18,7 @@ import sys
 from pathlib import Path
 
 from ._common import UsageError
-
-#: ``brdffit fit`` options reused here unchanged (their parsing and checks are ``fit``'s).
-FIT_OPTIONS = ("config", "loss", "solver", "cutoff", "fix", "init", "bound", "subsample", "seed",
-               "multistart", "max_steps", "rtol", "atol", "ftol", "precision", "covariance")
-
-
-def _fit_option_actions():
-    from . import fitting
-
-    parser = argparse.ArgumentParser(add_help=False)
-    fitting.add_parser(parser.add_subparsers(), [])
-    fit = parser._subparsers._group_actions[0].choices["fit"]
-    actions = {a.dest: a for a in fit._actions}
-    return [actions[d] for d in FIT_OPTIONS]
+from .fitting import add_fit_options
 
 
 def add_parser(sub, parents) -> None:
@@ -52,9 +39,7 @@ def add_parser(sub, parents) -> None:
                    "listing paths one per line")
     p.add_argument("--model", "-m", help="model names, comma-separated (ggx,beckmann,gtr); "
                    "default: the preset's model")
-    fit_group = p.add_argument_group("fit options (as for `brdffit fit`, applied to every job)")
-    for action in _fit_option_actions():
-        fit_group._add_action(action)
+    add_fit_options(p.add_argument_group("fit options (as for `brdffit fit`, applied to every job)"))
     p.add_argument("--outdir", "-o", required=True, metavar="DIR",
                    help="folder for the results (created if needed)")
     p.add_argument("--plot", action="store_true",

@@ -58,22 +58,8 @@ def add_parser(sub, parents) -> None:
     p.add_argument("--model", "-m", help="a registered model (see `brdffit models`), or "
                    "several separated by commas (compared side by side); may come from the "
                    "preset instead")
-    p.add_argument("--config", "-c", metavar="PRESET",
-                   help="a TOML preset: a path, or a bare name looked up as configs/NAME.toml")
-    p.add_argument("--loss", help="residual weighting: linear, cosine, log, relative (+huber)")
-    p.add_argument("--cutoff", type=float, metavar="DEG",
-                   help="drop samples with θi or θo above DEG degrees")
-    p.add_argument("--fix", action="append", metavar="NAME=VALUE",
-                   help="hold a parameter at a value (f0=0.04 or f0=0.9,0.6,0.3); repeatable")
-    p.add_argument("--init", action="append", metavar="NAME=VALUE",
-                   help="start a parameter at a value; repeatable")
-    p.add_argument("--subsample", type=_count_or_fraction, metavar="N",
-                   help="fit on N randomly chosen valid samples (or a fraction like 0.1)")
-    p.add_argument("--seed", type=int, help="seed for subsampling and multi-start")
-    p.add_argument("--multistart", type=int, metavar="K", help="K extra random starts, best kept")
-    p.add_argument("--bound", action="append", metavar="NAME=LO,HI",
-                   help="narrow a parameter's bounds (alpha=0.01,0.5); repeatable")
-    _add_solver_arguments(p)
+    add_fit_options(p, p.add_argument_group(
+        "solver (defaults in brdffit.fit; a preset's [solver] table)"))
     p.add_argument("--out", "-o", metavar="RESULT.json", help="write the result as JSON")
     p.add_argument("--plot", metavar="FIG.png",
                    help="write the diagnostic figures FIG-slice.png, FIG-peaks.png, "
@@ -88,9 +74,34 @@ def add_parser(sub, parents) -> None:
     p.set_defaults(run=run)
 
 
-def _add_solver_arguments(p) -> None:
-    """The solver's options (those of ``brdffit.fit``), each overriding the preset."""
-    g = p.add_argument_group("solver (defaults in brdffit.fit; a preset's [solver] table)")
+def add_fit_options(target, solver=None) -> None:
+    """The options that shape a fit, each overriding the preset, added to ``target`` (a parser
+    or an argument group); the solver's go to ``solver`` (default ``target``). ``brdffit fit``
+    and ``brdffit batch`` both take them, from here; :func:`options_from` reads them."""
+    target.add_argument("--config", "-c", metavar="PRESET",
+                        help="a TOML preset: a path, or a bare name looked up as "
+                        "configs/NAME.toml")
+    target.add_argument("--loss",
+                        help="residual weighting: linear, cosine, log, relative (+huber)")
+    target.add_argument("--cutoff", type=float, metavar="DEG",
+                        help="drop samples with θi or θo above DEG degrees")
+    target.add_argument("--fix", action="append", metavar="NAME=VALUE",
+                        help="hold a parameter at a value (f0=0.04 or f0=0.9,0.6,0.3); "
+                        "repeatable")
+    target.add_argument("--init", action="append", metavar="NAME=VALUE",
+                        help="start a parameter at a value; repeatable")
+    target.add_argument("--subsample", type=_count_or_fraction, metavar="N",
+                        help="fit on N randomly chosen valid samples (or a fraction like 0.1)")
+    target.add_argument("--seed", type=int, help="seed for subsampling and multi-start")
+    target.add_argument("--multistart", type=int, metavar="K",
+                        help="K extra random starts, best kept")
+    target.add_argument("--bound", action="append", metavar="NAME=LO,HI",
+                        help="narrow a parameter's bounds (alpha=0.01,0.5); repeatable")
+    _add_solver_arguments(target if solver is None else solver)
+
+
+def _add_solver_arguments(g) -> None:
+    """The solver's options (those of ``brdffit.fit``)."""
     g.add_argument("--solver", help="lm (Levenberg-Marquardt, default), gauss-newton or dogleg")
     g.add_argument("--max-steps", type=int, metavar="N",
                    help="solver steps per start before giving up (default 200)")
@@ -199,7 +210,7 @@ def run(args) -> int:
         progress = Progress(quiet=args.quiet)
         progress(f"fitting {model.name} to {args.file}")
         try:
-            result = fit(data, model, **options.fit_kwargs(), throw=False,
+            result = fit(data, model, options, throw=False,
                          progress=progress if progress.enabled else None)
             result = dataclasses.replace(result, message=cli_words(result.message), provenance={
                 **result.provenance, "command": "brdffit fit", "config": list(options.sources)})
@@ -249,7 +260,7 @@ def _fit_several(args, models, options, outputs) -> int:
     for model in models:
         progress(f"fitting {model.name} to {args.file}")
         try:
-            result = fit(data, model, **options.fit_kwargs(), throw=False,
+            result = fit(data, model, options, throw=False,
                          progress=progress if progress.enabled else None)
         except BrdffitError as exc:  # the library's advice, in flags
             raise UsageError(cli_words(str(exc))) from exc

@@ -42,14 +42,15 @@ def sample_pairs(n: int = 60000, *, cutoff: float = 80.0, seed: int = 0):
 
 
 def _starts(native, features) -> list[dict]:
-    """Two starting points for ``native`` from data-driven features: dielectric and metal."""
-    rough = float(np.clip(np.sqrt(features.alpha), 0.05, 0.95))
+    """Two starting points for ``native`` from data-driven features: the dielectric and the
+    metal reading (:func:`brdffit.models.starts.metallic_roughness`)."""
+    from ..models.starts import metallic_roughness
+
     starts = []
     for metal in (False, True):
-        color = np.clip(features.f0 if metal else features.diffuse, 0.02, 0.98)
-        p = {"base_color": color, "metallic": 0.9 if metal else 0.1, "roughness": rough,
-             "specular": 0.5, "alpha": features.alpha, "alpha_u": features.alpha,
-             "alpha_v": features.alpha, "specular_reflectance": np.clip(features.f0, 0.02, 0.98)}
+        p = {**metallic_roughness(features, metal), "specular": 0.5, "alpha": features.alpha,
+             "alpha_u": features.alpha, "alpha_v": features.alpha,
+             "specular_reflectance": np.clip(features.f0, 0.02, 0.98)}
         starts.append({k: v for k, v in p.items() if k in native.names})
     return starts
 
@@ -63,8 +64,7 @@ def approximate(model, params, native, *, n: int = 40000, cutoff: float = 80.0, 
     parameters of :data:`HELD` to fit as well (e.g. ``("clearcoat", "clearcoat_gloss")`` for a
     coated source). ``subsample`` cells of the ``≈ 0.6 n`` pairs kept are fitted (all if fewer).
     """
-    from ..fitting import fit
-    from ..fitting.init import measure
+    from ..fitting import fit, measure
     from ..models import get_model
     from ..models.evaluate import evaluate_model
 

@@ -1,24 +1,59 @@
 """Fitting BRDF models to measured tables: ``fit(table, model) -> FitResult``.
 
-Public surface: :func:`fit`, :class:`FitResult`, the loss registry (:data:`LOSSES`,
-:func:`get_loss`, :class:`Loss`), the solver registry (:data:`SOLVERS`), :class:`Subsample`.
+The public surface is ``__all__`` below, and only that: code elsewhere in ``brdffit`` (the
+posterior, the API, the command line, batch runs, exports) imports these names from
+``brdffit.fitting`` itself, never a module of the package and never an underscore name. The
+tests and the benchmarks, which examine the engine's parts, may import its modules, but no
+underscore name either. ``tests/test_fitting_surface.py`` checks both rules. What is not
+listed may change without notice.
+
+* the fit: :func:`fit`, its options (:data:`FIT_DEFAULTS`, :func:`fit_options`,
+  :class:`Settings`, :func:`tolerances`, :func:`default_precision`) and its result
+  (:class:`FitResult`, :class:`FittedModel`, :func:`json_safe`, :func:`value_with_error`);
+* the registries: losses (:data:`LOSSES`, :data:`DEFAULT_LOSS`, :func:`get_loss`,
+  :class:`Loss`) and solvers (:data:`SOLVERS`, :data:`DEFAULT_SOLVER`);
+* the pieces another estimator of the same problem needs (the posterior sampler): the cells
+  (:func:`select`, :class:`Selection`, :class:`FitData`, :class:`Subsample`,
+  :func:`check_enough`), the free scalars (:class:`Scalars`, :func:`assign`), the problem
+  (:class:`Problem`, built by :meth:`Problem.build`), and the data-driven features of a start
+  (:func:`measure`, :class:`Features`).
 """
 
-from .data import Subsample
+from .data import FitData, Selection, Subsample, check_enough, select
+from .fitter import fit
 from .losses import DEFAULT_LOSS, LOSSES, Loss, get_loss
-from .result import FitResult, FittedModel
-from .solve import fit
+from .options import FIT_DEFAULTS, Settings, default_precision, fit_options, tolerances
+from .parameters import Scalars, assign
+from .problem import Problem
+from .result import FitResult, FittedModel, json_safe, value_with_error
 from .solvers import DEFAULT_SOLVER, SOLVERS
+from .start import Features, measure
 
 __all__ = [
     "DEFAULT_LOSS",
     "DEFAULT_SOLVER",
+    "FIT_DEFAULTS",
     "LOSSES",
     "SOLVERS",
+    "Features",
+    "FitData",
     "FitResult",
     "FittedModel",
     "Loss",
+    "Problem",
+    "Scalars",
+    "Selection",
+    "Settings",
     "Subsample",
+    "assign",
+    "check_enough",
+    "default_precision",
     "fit",
+    "fit_options",
     "get_loss",
+    "json_safe",
+    "measure",
+    "select",
+    "tolerances",
+    "value_with_error",
 ]

@@ -25,6 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..config import check_fit_options
 from ..errors import ConfigError, FitError
 from .losses import Loss
 
@@ -111,10 +112,8 @@ class Selection:
 def _static_rows(wi, wo, cutoff):
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
     if cutoff is not None:
-        c = float(cutoff)
-        if not 0.0 < c <= 90.0:
-            raise ConfigError(f"cutoff is an angle in degrees in (0, 90], got {cutoff!r}")
-        cmin = np.cos(np.radians(c))
+        check_fit_options({"cutoff": cutoff})
+        cmin = np.cos(np.radians(float(cutoff)))
         ok &= (wi[:, 2] >= cmin) & (wo[:, 2] >= cmin)
     return np.flatnonzero(ok)
 
@@ -192,7 +191,7 @@ def _device(wi, wo, rgb, sw, *, loss: Loss, chunks: int, dtype: str) -> FitData:
     Interleaving: block ``j`` holds the rows ``j, j + chunks, j + 2 chunks, ...`` of the
     (ascending, padded) selection, in the MERL layout's ``θh``-major order, so any leading blocks
     are an evenly spread subset of the table, specular peak included, which the warm start of
-    :func:`brdffit.fitting.solve.fit` fits first. The padding cells (zero weight) are the last
+    :mod:`brdffit.fitting.stages` fits first. The padding cells (zero weight) are the last
     rows before interleaving; a single block keeps the order.
     """
 

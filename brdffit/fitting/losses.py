@@ -22,29 +22,19 @@ relative   ``ρ``, weight ``1/max(ρ, floor)``     every cell counts by its rela
 A robust variant of any loss (``huber=δ``) replaces ``r`` beyond ``|r| > δ`` by
 ``sign(r) sqrt(2δ|r| - δ²)``, so that ``r²/2`` becomes Huber's ``δ|r| - δ²/2`` there.
 
-Why ``log`` is the default (picked by experiment; ``tests/test_fit_cross.py`` keeps the
-evidence): a real-like table (a sharp lobe α = 0.03, F0 ≈ 0.8 over a weak broad lobe and a
-diffuse floor of 0.01–0.03; peaks in the thousands; 2% noise; 50 wild cells ×10; 80° cutoff)
-fitted by one GGX lobe from the default start and from another start (20,000 cells):
-
-* ``log``: α = 0.0308, F0 within 4% of the sharp lobe's, the broad lobe absorbed into the
-  diffuse term; the same answer from both starts;
-* ``linear``: the peak cells decide everything: the diffuse level collapses to 1e-4 in two
-  channels, and the second start fails to converge;
-* ``cosine``: with a sharper lobe (α = 0.01) the second start converged elsewhere (cost ×600);
-* ``relative``: every cell counts equally, so wild and grazing cells pull the lobe: F0 ends at
-  its upper bound (1.0) in the red channel.
-
-``log(1 + ρ cosθi)`` compresses the peak to a few units and is linear (``≈ ρ cosθi``) on the
-diffuse floor, so both regions count, and the cosine down-weights the grazing cells that Burley
-2012 §4.7 calls extrapolated. It is the weighting used in the MERL fitting literature (Löw et
-al. 2012, "BRDF models for accurate and efficient rendering of glossy surfaces"; the seed texts
-do not cover fitting losses, so this citation is from outside them).
+``log`` is the default: ``log(1 + ρ cosθi)`` compresses the peak to a few units and is linear
+(``≈ ρ cosθi``) on the diffuse floor, so both regions count, and the cosine down-weights the
+grazing cells that Burley 2012 §4.7 calls extrapolated. It is the weighting of the MERL fitting
+literature (Löw et al. 2012, "BRDF models for accurate and efficient rendering of glossy
+surfaces"; a citation from outside the seed texts, which do not cover fitting losses). The
+comparison of the four on a real-like table is in ``docs/design/fitting.md``;
+``tests/test_fit_cross.py`` keeps the evidence.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Callable
 
 import jax.numpy as jnp
@@ -138,20 +128,35 @@ LOSSES: dict[str, Loss] = {
 DEFAULT_LOSS = "log"
 
 
-def get_loss(loss, huber: float | None = None) -> Loss:
-    """A :class:`Loss` from a registry name (or a ``Loss``), optionally made robust.
+_ROBUST = re.compile(r"^huber(?:\((?P<delta>[^()]+)\))?$")
 
-    ``"log+huber"`` style names are accepted too (Huber threshold ``huber`` or 0.1).
+
+def _huber_of(robust: str) -> float | None:
+    """The threshold of ``huber(δ)`` (a :attr:`Loss.label`'s suffix), ``None`` for ``huber``;
+    ``ValueError`` for anything else."""
+    m = _ROBUST.match(robust)
+    if m is None:
+        raise ValueError(robust)
+    return None if m.group("delta") is None else float(m.group("delta"))
+
+
+def get_loss(loss, huber: float | None = None) -> Loss:
+    """A :class:`Loss` from a registry name or a label (or a ``Loss``), optionally made robust.
+
+    ``"log+huber"`` style names are accepted too (Huber threshold ``huber`` or 0.1), and so is
+    every :attr:`Loss.label` (``"log+huber(0.05)"``, what a ``FitResult`` records).
     """
     if isinstance(loss, Loss):
-        out = loss
-    else:
-        name = str(loss)
-        base, _, robust = name.partition("+")
-        if robust not in ("", "huber") or base not in LOSSES:
-            raise UnknownNameError("loss", name, list(LOSSES) + [f"{k}+huber" for k in LOSSES])
+        return loss if huber is None else loss.robust(huber)
+    name = str(loss)
+    base, _, robust = name.partition("+")
+    try:
+        delta = _huber_of(robust) if robust else None
         out = LOSSES[base]
-        if robust:
-            out = out.robust(0.1 if huber is None else huber)
-            huber = None
+    except (KeyError, ValueError):
+        raise UnknownNameError("loss", name, list(LOSSES) + [f"{k}+huber" for k in LOSSES]) from None
+    if robust and delta is None:
+        out, huber = out.robust(0.1 if huber is None else huber), None
+    elif robust:
+        out = out.robust(delta)
     return out if huber is None else out.robust(huber)

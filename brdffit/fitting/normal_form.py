@@ -63,7 +63,7 @@ def gram(sums: Callable, u, data, chunks: int = 1, active=None):
     per-block derivatives stay in cache and the whole Jacobian is never in memory. ``active`` (a
     traced integer, default all) sums over the first ``active`` blocks only: the same compiled
     program then serves a fit on a leading subset of the blocks (the warm start of
-    :func:`brdffit.fitting.solve.fit`).
+    :mod:`brdffit.fitting.stages`).
     """
     acc = jnp.promote_types(u.dtype, jnp.float32)
     p = u.shape[0]

@@ -44,6 +44,18 @@ class Problem(eqx.Module):
     slo: jax.Array
     shi: jax.Array
 
+    @classmethod
+    def build(cls, scalars, loss: Loss, x, dtype: str, chunks: int) -> Problem:
+        """The problem of fitting ``scalars.model``'s free :class:`~.parameters.Scalars` under
+        ``loss``, the other scalars held at their values in the flat vector ``x``; the one place
+        a problem is built (the fit, and the posterior from a fit's result)."""
+        free = list(scalars.free)
+        slo, shi = scalars.bounds_in_s()
+        return cls(
+            scalars.model, loss, tuple(free), tuple(bool(b) for b in scalars.log[free]), dtype,
+            chunks, jnp.asarray(x), jnp.asarray(slo), jnp.asarray(shi),
+        )
+
     def physical(self, u):
         """Free scalars in physical units, ``x(u)``."""
         return to_physical(u, self.slo, self.shi, np.asarray(self.log, bool))

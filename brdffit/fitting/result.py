@@ -42,14 +42,14 @@ def _scalar_or_list(a):
     return float(a) if a.ndim == 0 else [float(v) for v in a.ravel()]
 
 
-def _json_safe(v):
+def json_safe(v):
     """NaN/inf become ``None`` (strict JSON); everything else passes through."""
     if isinstance(v, float) and not math.isfinite(v):
         return None
     if isinstance(v, list):
-        return [_json_safe(x) for x in v]
+        return [json_safe(x) for x in v]
     if isinstance(v, dict):
-        return {k: _json_safe(x) for k, x in v.items()}
+        return {k: json_safe(x) for k, x in v.items()}
     return v
 
 
@@ -280,7 +280,7 @@ class FitResult:
 
     def to_json(self, path=None, indent: int = 2) -> str:
         """JSON text (strict: NaN written as ``null``); also written to ``path`` if given."""
-        text = json.dumps(_json_safe(self.to_dict()), indent=indent)
+        text = json.dumps(json_safe(self.to_dict()), indent=indent)
         if path is not None:
             Path(path).write_text(text)
         return text

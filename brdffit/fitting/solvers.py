@@ -20,21 +20,21 @@ Parts swapped in (optimistix solvers are built from parts):
   when the quadratic model's gradient points back inside. A parameter whose optimum lies at or
   beyond its bound therefore ends exactly on it, in the step that reaches it.
 * :class:`NoiseTolerantTrustRegion` (both trust-region solvers): accepts a step whose actual
-  change of the cost is within rounding noise of zero. Optimistix's ``ClassicalTrustRegion``
-  rejects such steps (their predicted reduction is ~1e-20 while the cost, a sum over millions
-  of cells, carries rounding noise of ~1e-15 relative), and a rejected step never triggers the
+  change of the cost is within rounding noise of zero (``noise × cost``), which optimistix's
+  ``ClassicalTrustRegion`` rejects near an exact fit; a rejected step never triggers the
   convergence test.
 * :class:`Optimality` (all three): the convergence test. After each accepted step it computes
   the undamped bounded Gauss–Newton step from the accepted point and its predicted decrease of
   the cost; the solve has **converged** when that decrease is below ``ftol`` times the cost
   (:func:`optimality`): no step the local model can see would lower the cost by more than a
-  fraction ``ftol``. This is a first-order optimality test in the units of the data (the cost),
-  with the active set at the bounds (a parameter held on its bound by its gradient contributes
-  nothing), and it needs no assumption that the model fits the data: on a real material the
-  residual is mostly model error, and a test in standard errors (which assume a perfect model)
-  is meaningless there. Optimistix's own Cauchy test (a negligible accepted step and residual
-  change, ``rtol``/``atol``) also ends the solve, but then the fit is reported as *stalled*
-  unless the optimality test holds too: the step limit and a stall are never success.
+  fraction ``ftol``. A first-order optimality test in the units of the data (the cost), with
+  the active set at the bounds (a parameter held on its bound by its gradient contributes
+  nothing), that assumes nothing about how well the model fits. Optimistix's own Cauchy test (a
+  negligible accepted step and residual change, ``rtol``/``atol``) also ends the solve, but then
+  the fit is reported as *stalled* unless the optimality test holds too: the step limit and a
+  stall are never success.
+
+Why these parts, and the measurements behind them: ``docs/design/fitting.md``.
 """
 
 from __future__ import annotations
@@ -231,9 +231,9 @@ class Optimality(optx.AbstractLeastSquaresSolver):
     After each accepted step, at the point ``z`` just evaluated, :func:`optimality` gives the
     fraction ``ω`` of the cost that the undamped bounded Gauss–Newton step could still remove;
     ``ω ≤ ftol`` ends the solve there (that point's ``aux``, ``JᵀJ`` and the sandwich meat,
-    belong to the answer). The inner solver's own Cauchy test also ends it; :func:`_solve`
-    in :mod:`brdffit.fitting.solve` re-evaluates ``ω`` at the end point and reports success only
-    when ``ω ≤ ftol``. Everything else (steps, damping, acceptance) is the inner solver's.
+    belong to the answer). The inner solver's own Cauchy test also ends it;
+    :func:`brdffit.fitting.solve.solve` re-evaluates ``ω`` at the end point and the fit reports
+    success only when ``ω ≤ ftol``. Everything else (steps, damping, acceptance) is the inner solver's.
     """
 
     inner: optx.AbstractLeastSquaresSolver

@@ -15,9 +15,8 @@ are *not* at a bound (``m`` residuals with non-zero weight, ``p`` such scalars):
 
 The classical estimate assumes every residual has the same variance. Under the default ``log``
 loss, multiplicative noise is *not* homoscedastic (a residual's spread is ``σ ρcosθ/(1+ρcosθ)``:
-``σ`` on the peak, ``~0.01σ`` on a dark diffuse floor); measured with 2% noise on a ``ggx`` table
-(12 seeds, 5,000 cells), ``"gn"`` gave ``|z|`` up to 4.8 for ``alpha`` while the sandwich gave
-root-mean-square ``z`` of 0.5–1.2 for every parameter. Hence the sandwich by default.
+``σ`` on the peak, ``~0.01σ`` on a dark diffuse floor), hence the sandwich by default (the
+coverage measured for both: ``docs/design/fitting.md``).
 
 Delta method: ``J_x = J_u (∂x/∂u)⁻¹``, so the bounds transform cancels and the covariance is in
 physical units. Scalars at a bound are held fixed (their ``∂x/∂u`` vanishes), as scipy's

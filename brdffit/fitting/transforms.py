@@ -13,8 +13,7 @@ affine in ``s``, so a parameter on its bound has the same derivative as one insi
 Levenberg–Marquardt step (:func:`brdffit.fitting.solvers.box_step`) keeps every iterate in the
 box, puts a parameter whose optimum lies at or beyond its bound exactly on it, and leaves it
 there only when the gradient points back inside (an active set, as in MINPACK/Ceres's bounded LM
-or scipy's ``trf``). A logistic map (used before) only approaches a bound as ``|u| → ∞``, with a
-derivative that vanishes on the way: such parameters drifted for hundreds of steps.
+or scipy's ``trf``); why not a logistic map: ``docs/design/fitting.md``.
 
 The albedo-like parameters (diffuse, ``F0``) are linear in ``z``: most models are linear in
 them, so the Gauss–Newton model is nearly exact along those coordinates.

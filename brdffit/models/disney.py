@@ -35,6 +35,7 @@ from ..terms.masking import G2_separable
 from ..terms.microfacet import microfacet_specular
 from ..terms.ndf import GGX, GTR
 from .registry import Model, Param, register
+from .starts import principled
 
 #: Luminance weights of the reference implementation's tint (an approximation of Rec. 709 Y).
 LUMINANCE = (0.3, 0.6, 0.1)
@@ -191,6 +192,7 @@ DISNEY_MODEL = register(
         params=DISNEY_PARAMS,
         fn=disney,
         isotropic=False,
+        start=principled,
         reference="Burley 2012 §5, App. B eqs. 4, 13, Addenda; RTR eqs. 9.27, 9.34, 9.54, 9.66, "
         "9.67; BRDF Explorer disney.brdf",
     )

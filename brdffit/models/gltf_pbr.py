@@ -38,6 +38,7 @@ from ..terms.fresnel import schlick_weight
 from ..terms.microfacet import microfacet_specular
 from ..terms.ndf import GGX
 from .registry import Model, Param, register
+from .starts import metallic_roughness
 
 #: ``f0`` of the dielectric part: ``((1 − ior)/(1 + ior))²`` at the fixed ``ior = 1.5``.
 DIELECTRIC_F0 = 0.04
@@ -69,5 +70,6 @@ GLTF_PBR = register(Model(
         Param("roughness", (), 0.02, 1.0, 0.5, "roughnessFactor; α = roughness²"),
     ),
     fn=gltf_pbr,
+    start=metallic_roughness,
     reference="glTF 2.0 Specification Appendix B §B.3.1-§B.3.4; RTR eqs. 9.16, 9.31, 9.41, 9.42",
 ))

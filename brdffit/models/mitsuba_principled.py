@@ -57,6 +57,7 @@ from ..terms.fresnel import dielectric, schlick, schlick_weight
 from ..terms.masking import G2_separable
 from ..terms.ndf import GGX
 from .registry import Model, Param, register
+from .starts import principled
 
 #: Mitsuba's ``luminance()`` in RGB mode (Rec. 709 / sRGB Y).
 LUMINANCE = (0.212671, 0.715160, 0.072169)
@@ -179,6 +180,7 @@ MITSUBA_PRINCIPLED = register(Model(
     params=PRINCIPLED_PARAMS,
     fn=mitsuba_principled,
     isotropic=False,
+    start=principled,
     reference="Mitsuba 3 src/bsdfs/principled.cpp, principledhelpers.h, "
     "include/mitsuba/render/microfacet.h, fresnel.h; Burley 2012 §5, App. B eq. 4",
 ))

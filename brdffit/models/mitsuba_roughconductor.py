@@ -40,6 +40,7 @@ from ..terms.masking import G2_separable
 from ..terms.microfacet import microfacet_specular
 from ..terms.ndf import GGX, Beckmann
 from .registry import _REGISTRY, Model, Param, register, register_factory
+from .starts import rough_conductor
 
 #: Physical ranges of the optical constants fitted per channel. Metals in the visible have
 #: η from about 0.05 (silver) to 3 (iron, titanium) and k from about 0.5 to 10; the bounds
@@ -122,6 +123,7 @@ def roughconductor_model(distribution: str = "ggx", anisotropic: bool = False, f
         params=_params(anisotropic, fresnel),
         fn=_roughconductor_fn(distribution, anisotropic, fresnel),
         isotropic=not anisotropic,
+        start=partial(rough_conductor, anisotropic=anisotropic, fresnel=fresnel),
         reference="Mitsuba 3 src/bsdfs/roughconductor.cpp, include/mitsuba/render/microfacet.h, "
         "fresnel.h (fresnel_conductor); RTR eqs. 9.27, 9.34",
     ))

@@ -92,6 +92,15 @@ class Model:
     :func:`brdffit.models.evaluate.evaluate_model` then prepares once per call and compiles the
     other two as separate programs (see :mod:`brdffit.models.aps` for why that is faster). The
     fitter always uses ``fn``.
+
+    ``start`` (optional) is the model's data-driven starting point for a fit:
+    ``start(features) -> {name: value}``, from features the fitter reads off the data
+    (:class:`brdffit.fitting.start.Features`: ``diffuse``, the diffuse albedo, RGB; ``height``,
+    the specular peak's excess over it, RGB; ``alpha``, a GGX roughness from the peak's width;
+    ``f0``, a Schlick ``F0`` from height and width, RGB). The fitter moves each value inside the
+    parameter's bounds and keeps the declared default for a parameter the hook does not name.
+    Without a hook the features go to parameters by name (``diffuse``, ``f0``, ``alpha``...);
+    :mod:`brdffit.models.starts` has the hooks of the built-in models.
     """
 
     name: str
@@ -101,6 +110,9 @@ class Model:
     isotropic: bool = True
     reference: str = ""
     stages: tuple[Callable, Callable, Callable] | None = dataclasses.field(
+        default=None, repr=False, compare=False
+    )
+    start: Callable[[object], Mapping] | None = dataclasses.field(
         default=None, repr=False, compare=False
     )
 

@@ -105,8 +105,8 @@ def combined_json(fit_result, post) -> str:
     """The fit's JSON with the posterior under ``"posterior"`` (strict JSON)."""
     import json
 
-    from ..fitting.result import _json_safe
+    from ..fitting import json_safe
 
     d = json.loads(fit_result.to_json())
     d["posterior"] = post.to_dict()
-    return json.dumps(_json_safe(d), indent=2)
+    return json.dumps(json_safe(d), indent=2)

@@ -7,30 +7,15 @@ fixed scalars by flat name and the optimum ``x``; it does not record ``bounds``,
 
 from __future__ import annotations
 
-import dataclasses
-import re
-
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError
-from ..fitting.losses import get_loss
-from ..fitting.problem import Problem
-from ..fitting.setup import flat_bounds, flat_log
-from ..fitting.transforms import bounds_in_s
-
-_HUBER = re.compile(r"^(?P<base>[a-z]+)\+huber\((?P<delta>[^)]+)\)$")
+from ..fitting import Problem, Scalars, default_precision, get_loss
 
 
 def loss_of(result, loss=None):
-    """The :class:`~brdffit.fitting.losses.Loss` of ``result`` (or ``loss`` when given)."""
-    if loss is not None:
-        return get_loss(loss)
-    m = _HUBER.match(result.loss)
-    if m:
-        return get_loss(m.group("base"), huber=float(m.group("delta")))
-    return get_loss(result.loss)
+    """The :class:`~brdffit.fitting.Loss` of ``result`` (or ``loss`` when given)."""
+    return get_loss(result.loss if loss is None else loss)
 
 
 def problem_from(result, model, loss, bounds=None, chunks: int = 1):
@@ -44,23 +29,14 @@ def problem_from(result, model, loss, bounds=None, chunks: int = 1):
             f"the fit result is for model {result.model_name!r} but the posterior was asked for "
             f"{model.name!r}; pass the matching model (or the result alone)"
         )
-    lo, hi = flat_bounds(model, bounds)
     names = model.flat_names()
-    free = tuple(names.index(n) for n in result.free)
-    log = flat_log(model)
-    slo, shi = bounds_in_s(lo, hi, log)
-    dtype = "float64" if jax.config.jax_enable_x64 else "float32"
+    scalars = Scalars.of(model, [names.index(n) for n in result.free], bounds)
+    lo, hi = scalars.lo, scalars.hi
     x = np.asarray(result.x, float)
-    outside = [names[i] for i in free if not lo[i] <= x[i] <= hi[i]]
+    outside = [names[i] for i in scalars.free if not lo[i] <= x[i] <= hi[i]]
     if outside:
         raise ConfigError(
             f"the least-squares optimum has {outside} outside the bounds given here; pass the "
             f"same `bounds` as the fit"
         )
-    fields = dict(
-        model=model, loss=loss, free=free, log=tuple(bool(b) for b in log[list(free)]),
-        compute_dtype=dtype, chunks=chunks, x_fixed=jnp.asarray(x),
-        slo=jnp.asarray(slo[list(free)]), shi=jnp.asarray(shi[list(free)]),
-    )
-    known = {f.name for f in dataclasses.fields(Problem)}  # the fit engine's fields evolve
-    return Problem(**{k: v for k, v in fields.items() if k in known}), lo, hi
+    return Problem.build(scalars, loss, x, default_precision(), chunks), lo, hi

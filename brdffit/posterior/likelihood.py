@@ -1,6 +1,6 @@
 r"""The log-posterior handed to emcee: one jitted, vectorized JAX function of the walkers.
 
-Noise model (the issue's choice, stated once). The fit's residual of cell ``k``, channel ``c``
+Noise model (the one convention, stated once). The fit's residual of cell ``k``, channel ``c``
 under the chosen loss (:mod:`brdffit.fitting.losses`) is
 ``r_kc(θ) = w_kc (g(ρ̂_kc(θ)) - g(ρ_kc))``; the likelihood treats the ``m`` residuals with
 non-zero weight as independent Gaussians of one scale ``σ``:
@@ -39,8 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError
-from ..fitting.data import FitData
-from ..fitting.problem import Problem
+from ..fitting import FitData, Problem
 from .priors import LogUniform, PriorBox
 
 #: The sampled noise scale's prior spans this factor either side of the least-squares ``s``.

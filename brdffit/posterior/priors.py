@@ -1,6 +1,6 @@
 r"""Priors of the posterior: one independent prior per free scalar, as data.
 
-The default (the issue's choice) is **uniform inside each parameter's physical bounds** and
+The default is **uniform inside each parameter's physical bounds** and
 ``-inf`` outside: the model's declared bounds, narrowed by any ``bounds=`` of the fit. Override
 any scalar from Python with ``prior={name: ...}``, where the value is
 
@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError
-from ..fitting.setup import assign
+from ..fitting import assign
 
 #: Integer codes of the prior families inside the jitted log-density.
 _UNIFORM, _LOG_UNIFORM, _NORMAL = 0, 1, 2

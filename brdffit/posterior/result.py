@@ -144,7 +144,7 @@ class PosteriorResult:
         τ and effective sample sizes, the acceptance and any warnings."""
         import html
 
-        from ..fitting.result import value_with_error
+        from ..fitting import value_with_error
 
         s, d = self.settings, self.diagnostics
         esc = html.escape
@@ -182,9 +182,9 @@ class PosteriorResult:
 
     def to_json(self, path=None, indent: int = 2) -> str:
         """Strict JSON (NaN as ``null``); also written to ``path`` if given."""
-        from ..fitting.result import _json_safe
+        from ..fitting import json_safe
 
-        text = json.dumps(_json_safe(self.to_dict()), indent=indent)
+        text = json.dumps(json_safe(self.to_dict()), indent=indent)
         if path is not None:
             Path(path).write_text(text)
         return text

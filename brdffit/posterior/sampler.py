@@ -24,9 +24,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError
+from ..fitting import FitResult, Subsample, check_enough, default_precision, select
 from ..fitting import fit as run_fit
-from ..fitting.data import Subsample, check_enough, select
-from ..fitting.result import FitResult
 from ..models.registry import get_model
 from .defaults import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_SUBSAMPLE_CELLS, DEFAULT_WALKERS
 from .diagnostics import check, diagnose
@@ -118,9 +117,9 @@ def _posterior(result, samples, *, loss, cutoff, subsample, seed, bounds, noise,
     """The :class:`LogPosterior`, its selection, the start centre and scales, noise info."""
     model = get_model(result.model_name)
     loss_obj = loss_of(result, loss)
-    dtype = np.float64 if jax.config.jax_enable_x64 else np.float32
+    dtype = default_precision()
     sel = select(samples, loss_obj, cutoff=cutoff, subsample=subsample, seed=seed, dtype=dtype)
-    problem, lo, hi = problem_from(result, model, loss_obj, bounds, getattr(sel, "chunks", 1))
+    problem, lo, hi = problem_from(result, model, loss_obj, bounds, sel.chunks)
     check_enough(sel, len(problem.free), samples.name)
     free = list(problem.free)
     x_ls = np.asarray(result.x, float)[free]

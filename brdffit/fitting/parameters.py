@@ -1,12 +1,15 @@
-"""Turning the user's ``fixed``/``init``/``bounds`` options into flat vectors, with clear errors."""
+"""A model's flat parameter vector in one fit: the user's ``fixed``/``init``/``bounds`` options
+written into it (with clear errors), and which scalars are free (:class:`Scalars`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import numpy as np
 
-from ..errors import ConfigError, UnknownNameError
+from ..errors import ConfigError, FitError, UnknownNameError
+from .transforms import bounds_in_s, to_box
 
 _FLAT = re.compile(r"^(?P<name>[^\[\]]+)\[(?P<i>\d+)\]$")
 
@@ -83,3 +86,56 @@ def check_within(model, x, lo, hi, idx, what: str) -> None:
                 f"{what} {names[i]}={x[i]:g} is outside its bounds [{lo[i]:g}, {hi[i]:g}]; "
                 f"pick a value inside or widen `bounds`"
             )
+
+
+@dataclasses.dataclass(frozen=True)
+class Scalars:
+    """The flat scalars of ``model`` in one fit: their bounds ``lo``, ``hi`` (the declared ones
+    overridden by the fit's ``bounds``), which are fitted in log space, and which are ``free``
+    (flat indices, ascending); the others are held at their values."""
+
+    model: object
+    lo: np.ndarray
+    hi: np.ndarray
+    free: tuple[int, ...]
+
+    @classmethod
+    def of(cls, model, free, bounds=None) -> Scalars:
+        """The ``free`` scalars (flat indices) of ``model`` within ``bounds`` (name → pair)."""
+        lo, hi = flat_bounds(model, bounds)
+        return cls(model, lo, hi, tuple(int(i) for i in free))
+
+    @property
+    def log(self) -> np.ndarray:
+        return flat_log(self.model)
+
+    @property
+    def fixed(self) -> list[int]:
+        free = set(self.free)
+        return [i for i in range(len(self.lo)) if i not in free]
+
+    def bounds_in_s(self) -> tuple[np.ndarray, np.ndarray]:
+        """The free scalars' bounds in the box map's ``s`` coordinate (:mod:`.transforms`)."""
+        slo, shi = bounds_in_s(self.lo, self.hi, self.log)
+        free = list(self.free)
+        return slo[free], shi[free]
+
+    def to_box(self, x) -> np.ndarray:
+        """The box coordinates ``z`` of the free entries of the flat vector ``x``."""
+        free = list(self.free)
+        slo, shi = self.bounds_in_s()
+        return to_box(np.asarray(x, float)[free], slo, shi, self.log[free])
+
+
+def free_scalars(model, fixed=None, bounds=None) -> tuple[Scalars, np.ndarray]:
+    """The :class:`Scalars` of a fit with ``fixed`` (name → value) and ``bounds`` (name →
+    pair), and the flat vector of the declared defaults with the fixed values written in.
+    Raises :class:`~brdffit.errors.FitError` when every scalar is fixed."""
+    lo, hi = flat_bounds(model, bounds)
+    x0 = model.flatten({})
+    held = set(assign(model, fixed, x0, "fixed value of"))
+    check_within(model, x0, lo, hi, sorted(held), "fixed")
+    free = [i for i in range(len(x0)) if i not in held]
+    if not free:
+        raise FitError(f"every parameter of {model.name!r} is fixed: nothing to fit")
+    return Scalars(model, lo, hi, tuple(free)), x0

@@ -12,10 +12,12 @@ difference angle, Rusinkiewicz 1998):
   ``α ≈ tan θ½ / 0.6436``; at the peak ``f ≈ F0 D(0) / (4 cos²θd)`` (RTR eq. 9.34 with
   ``G2 ≈ 1``), so ``F0 ≈ 4π α² cos²θd H``.
 
-These features are mapped onto the model's parameters by name (``diffuse``, ``f0*``,
-``alpha*``, Disney's ``base_color``/``metallic``/``roughness``/``specular``); any parameter not
-recognised keeps its declared default. The map is a convention of this module, not a formula of
-the sources, and is only a starting point for the solver.
+A model maps these features onto its parameters itself when it declares a start hook
+(``Model.start``, e.g. Disney's ``base_color``/``metallic``/``roughness``/``specular``);
+otherwise they are mapped by parameter name (``diffuse``, ``f0*``, ``alpha*``). Any parameter
+the map does not name keeps its declared default. The maps are conventions, not formulas of the
+sources, and only a starting point for the solver; the user's ``init`` goes on top
+(:func:`start_point`).
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+
+from .parameters import assign, check_within
 
 GGX_HALF_WIDTH = np.sqrt(np.sqrt(2.0) - 1.0)
 
@@ -100,19 +104,9 @@ def measure(rgb, wi, wo, good) -> Features:
     return Features(diffuse, height, alpha, f0)
 
 
-def _disney(feat: Features) -> dict:
-    metal = float(np.mean(feat.f0)) > 0.25
+def by_name(feat: Features) -> dict:
+    """The features by parameter name: the start of a model without a start hook."""
     return {
-        "base_color": np.clip(feat.f0 if metal else feat.diffuse, 0.02, 0.98),
-        "metallic": 0.9 if metal else 0.1,
-        "roughness": float(np.clip(np.sqrt(feat.alpha), 0.05, 0.95)),
-        "specular": float(np.clip(np.mean(feat.f0) / 0.08, 0.05, 0.95)),
-    }
-
-
-def guess(model, feat: Features) -> dict:
-    """A starting parameter dict for ``model`` from measured :class:`Features`."""
-    by_name = {
         "diffuse": feat.diffuse,
         "f0": feat.f0,
         "f0_1": feat.f0,
@@ -123,12 +117,37 @@ def guess(model, feat: Features) -> dict:
         "alpha_1": feat.alpha,
         "alpha_2": min(0.9, 4.0 * feat.alpha),
     }
-    if model.name == "disney":
-        by_name = _disney(feat)
+
+
+def guess(model, feat: Features) -> dict:
+    """A starting parameter dict for ``model`` from measured :class:`Features`: its start hook's
+    values (``model.start``) or :func:`by_name`, each moved inside its bounds by a margin of
+    1e-3 of the range."""
+    values = model.start(feat) if model.start is not None else by_name(feat)
     out = {}
     for p in model.params:
-        if p.name in by_name:
-            v = np.broadcast_to(np.asarray(by_name[p.name], float), p.shape)
+        if p.name in values:
+            v = np.broadcast_to(np.asarray(values[p.name], float), p.shape)
             width = p.upper - p.lower
             out[p.name] = np.clip(v, p.lower + 1e-3 * width, p.upper - 1e-3 * width)
     return out
+
+
+def start_point(model, host, scalars, x0, init=None) -> np.ndarray:
+    """The flat starting vector: ``x0`` (defaults and fixed values) with the free scalars at the
+    data-driven :func:`guess` on the selected cells ``host`` (``(wi, wo, rgb, good)``), then the
+    user's ``init`` (name → value, or a previous ``FitResult``) on top; fixed scalars keep their
+    values."""
+    wi, wo, rgb, good = host
+    start = model.flatten(guess(model, measure(rgb, wi, wo, good)))
+    free = list(scalars.free)
+    x = x0.copy()
+    x[free] = start[free]
+    if init is not None:
+        user = x.copy()
+        idx = assign(model, getattr(init, "params", init), user, "init value of")
+        check_within(model, user, scalars.lo, scalars.hi, idx, "init")
+        held = set(scalars.fixed)
+        keep = [i for i in idx if i not in held]
+        x[keep] = user[keep]
+    return x

@@ -1,0 +1,80 @@
+"""``fit``: least-squares fitting of a registered model to a measured table, with optimistix.
+
+The pipeline: the options, checked (:mod:`.options`) → the cells (:mod:`.data`) → the free
+scalars and their bounds (:mod:`.parameters`) → the starting point (:mod:`.start`, or the
+user's) → the problem in box coordinates (:mod:`.problem`, :mod:`.transforms`) → bounded
+optimistix solves of the Gauss–Newton normal form (:mod:`.normal_form`, :mod:`.solvers`,
+:mod:`.solve`), start by start and stage by stage (:mod:`.stages`) → the verdict, covariance
+and metrics (:mod:`.outcome`, :mod:`.statistics`) → :class:`~.result.FitResult`.
+"""
+
+from __future__ import annotations
+
+import time
+
+from ..models.registry import get_model
+from .data import check_enough, select
+from .events import Events
+from .options import Settings, fit_options
+from .outcome import Prepared, assemble
+from .parameters import free_scalars
+from .problem import Problem
+from .result import FitResult
+from .solvers import COST_NOISE, make_solver
+from .stages import best_of, starts
+from .start import start_point
+
+
+def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwargs) -> FitResult:
+    """Fit ``model`` to ``table`` by nonlinear least squares; returns a :class:`FitResult`.
+
+    Args:
+        table: anything with ``.to_samples()`` giving a ``data_formats.SampleSet`` (a
+            ``MERLTable``, a ``SampleSet``).
+        model: a registry name (``"ggx"``) or a :class:`~brdffit.models.Model`.
+        options: a :class:`~brdffit.config.FitOptions` (a preset, say) or a mapping of option
+            names; the keyword options override it, option by option.
+        progress: ``callback(event, info)`` with events ``setup``, ``start``, ``scan-step`` and
+            ``scan`` (one per candidate of the start scan), ``warm-step`` and ``warm-done``
+            (large tables: the warm start on a subset of the blocks), ``step`` (the whole
+            selection), ``start-done``, ``done``. Step events carry the cost of the cells of
+            their stage. Each fit's events go to its own callback, also with fits running in
+            several threads at once.
+        throw: raise :class:`~brdffit.errors.FitError` when the solver does not converge;
+            with ``False`` the result carries ``success=False`` and the solver's message.
+        **kwargs: the options, each described with its default in
+            :class:`~brdffit.fitting.options.Settings`: ``loss``, ``solver``, ``init``,
+            ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,
+            ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
+            ``covariance``. All are checked before the table is read.
+    """
+    given = fit_options(options, **kwargs)
+    t0 = time.perf_counter()
+    model = get_model(model)
+    settings = Settings.of(given)
+    events = Events(progress)
+    solver = make_solver(settings.solver, settings.rtol, settings.atol, events.reporter(),
+                         COST_NOISE[settings.precision], settings.ftol)
+    prep = prepare(table, model, settings)
+    with events:
+        events.emit("setup", n_cells=prep.selection.n_used, n_free=len(prep.scalars.free),
+                    model=model.name)
+        t1 = time.perf_counter()
+        zs = starts(prep.z0, settings.multistart, settings.seed)
+        best, costs = best_of(prep.problem, solver, prep.selection.data, zs, settings.max_steps,
+                              settings.scan, events)
+        t2 = time.perf_counter()
+    return assemble(prep, best, costs, (t0, t1, t2), events, throw)
+
+
+def prepare(table, model, settings: Settings) -> Prepared:
+    """The cells, the free scalars, the starting point and the problem of a fit."""
+    samples = table.to_samples()
+    scalars, x0 = free_scalars(model, settings.fixed, settings.bounds)
+    sel = select(samples, settings.loss, cutoff=settings.cutoff, subsample=settings.subsample,
+                 seed=settings.seed, dtype=settings.precision)
+    check_enough(sel, len(scalars.free), samples.name)
+    x_start = start_point(model, sel.host, scalars, x0, settings.init)
+    problem = Problem.build(scalars, settings.loss, x_start, settings.precision, sel.chunks)
+    return Prepared(model, settings, scalars, sel, problem, x_start, scalars.to_box(x_start),
+                    samples.name)

@@ -1,0 +1,163 @@
+"""The options of a fit: one path that checks them, whether given as keywords or as a
+:class:`~brdffit.config.FitOptions`, and the defaults that live in code.
+
+:func:`fit_options` merges a ``FitOptions`` (or a mapping of option names) with keyword
+arguments, the keywords winning option by option, and refuses unknown names, out-of-range
+numbers (:func:`brdffit.config.check_fit_options`, the one place the ranges live) and unknown
+``covariance``/``precision`` names before any work. :meth:`Settings.of` then resolves what is
+left: the loss by name, the precision and the tolerances that depend on it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+import jax
+
+from ..errors import UnknownNameError
+from .losses import DEFAULT_LOSS, Loss, get_loss
+from .solvers import DEFAULT_SOLVER, FTOL
+
+#: Every option of :func:`brdffit.fitting.fit` with its default (``None``: decided from the
+#: data, the precision or not at all; see the function's docstring).
+FIT_DEFAULTS = {
+    "loss": DEFAULT_LOSS,
+    "solver": DEFAULT_SOLVER,
+    "init": None,
+    "fixed": None,
+    "bounds": None,
+    "cutoff": None,
+    "subsample": None,
+    "seed": 0,
+    "multistart": 0,
+    "max_steps": 200,
+    "rtol": None,
+    "atol": None,
+    "ftol": None,
+    "scan": True,
+    "precision": None,
+    "covariance": "sandwich",
+}
+COVARIANCES = ("sandwich", "gn")
+PRECISIONS = ("float32", "float64")
+
+
+def default_precision() -> str:
+    """The dtype of the model evaluation when none is asked for: ``"float64"`` when the caller
+    enabled ``jax_enable_x64``, else ``"float32"``."""
+    return "float64" if jax.config.jax_enable_x64 else "float32"
+
+
+def tolerances(precision: str, rtol=None, atol=None, ftol=None) -> tuple[float, float, float]:
+    """``(rtol, atol, ftol)`` with the defaults of ``precision`` filled in: the Cauchy test's
+    ``1e-14`` in float64 (``1e-6`` in float32), near rounding so that it catches only a true
+    stall, and the optimality test's :data:`~brdffit.fitting.solvers.FTOL`."""
+    base = 1e-14 if precision == "float64" else 1e-6
+    return (
+        base if rtol is None else float(rtol),
+        base if atol is None else float(atol),
+        FTOL[precision] if ftol is None else float(ftol),
+    )
+
+
+def fit_options(options=None, **kwargs) -> dict:
+    """The options of one fit, checked: ``options`` (a :class:`~brdffit.config.FitOptions` or a
+    mapping of option names) overridden by ``kwargs``; only what was given, defaults not filled
+    in.
+
+    Raises ``TypeError`` for a name that is no option (listing the valid ones),
+    :class:`~brdffit.errors.ConfigError` for a number out of its range and
+    :class:`~brdffit.errors.UnknownNameError` for an unknown ``covariance`` or ``precision``.
+    """
+    from ..config import check_fit_options
+
+    if options is None:
+        given = {}
+    elif hasattr(options, "fit_kwargs"):
+        given = options.fit_kwargs()
+    elif isinstance(options, Mapping):
+        given = dict(options)
+    else:
+        raise TypeError(f"options must be a FitOptions or a mapping of option names, got "
+                        f"{type(options).__name__}")
+    given.update(kwargs)
+    unknown = sorted(set(given) - set(FIT_DEFAULTS))
+    if unknown:
+        raise TypeError(
+            f"brdffit.fit() got unknown option(s) {', '.join(unknown)}; valid options: "
+            f"{', '.join(sorted(FIT_DEFAULTS))}, progress, throw"
+        )
+    check_fit_options(given)
+    if given.get("covariance", "sandwich") not in COVARIANCES:
+        raise UnknownNameError("covariance", str(given["covariance"]), list(COVARIANCES))
+    if given.get("precision") not in (None, *PRECISIONS):
+        raise UnknownNameError("precision", str(given["precision"]), list(PRECISIONS))
+    return given
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """The options of one fit, every default resolved (defaults: :data:`FIT_DEFAULTS`).
+
+    Attributes:
+        loss: the :class:`~brdffit.fitting.losses.Loss`, from a name of
+            :data:`brdffit.fitting.LOSSES` (``"log"`` by default, ``"log+huber"``...) or given.
+        solver: as given: ``"lm"`` (default), ``"gauss-newton"``, ``"dogleg"``, or an optimistix
+            least-squares solver.
+        init: name → starting value (overrides the data-driven guess), or a previous
+            ``FitResult``.
+        fixed: name → value of scalars held fixed (``"f0"`` or one component ``"f0[1]"``).
+        bounds: name → ``(lo, hi)`` overriding the declared bounds.
+        cutoff: drop cells with ``θi`` or ``θo`` above this many degrees (Burley 2012 §4.7).
+        subsample: a cell count, a fraction, or a :class:`~brdffit.fitting.data.Subsample`.
+        seed: for the subsample and the multi-start perturbations.
+        multistart: number of extra perturbed starts; the lowest cost wins.
+        max_steps: the step limit; reaching it is a failure (``success=False``), never the
+            normal way out.
+        rtol, atol: optimistix's Cauchy test on the accepted step (defaults 1e-14 in float64,
+            1e-6 in float32: near rounding, so that it ends only a solve that no longer moves,
+            reported as stalled unless the optimality test holds too).
+        ftol: the optimality test: converged when the bounded Gauss–Newton step from the end
+            point would lower the cost by less than ``ftol`` times the cost (default 1e-9 in
+            float64, 1e-6 in float32); see :func:`brdffit.fitting.solvers.optimality`.
+        scan: before the warm start, solve a few candidate starts with shifted lobe widths on a
+            small evenly spread subset of the cells and keep the best
+            (:mod:`brdffit.fitting.stages`); ``False`` starts from the data-driven (or given)
+            start alone.
+        precision: ``"float64"`` or ``"float32"`` model evaluation (products are accumulated in
+            float64 either way when x64 is enabled); default :func:`default_precision`.
+        covariance: ``"sandwich"`` (default, robust to heteroscedastic residuals) or ``"gn"``
+            (classical ``s² (JᵀJ)⁻¹``); see :mod:`brdffit.fitting.statistics`.
+    """
+
+    loss: Loss
+    solver: object
+    init: object
+    fixed: Mapping | None
+    bounds: Mapping | None
+    cutoff: float | None
+    subsample: object
+    seed: int
+    multistart: int
+    max_steps: int
+    rtol: float
+    atol: float
+    ftol: float
+    scan: bool
+    precision: str
+    covariance: str
+
+    @classmethod
+    def of(cls, given: Mapping) -> Settings:
+        """From the output of :func:`fit_options`, over :data:`FIT_DEFAULTS`."""
+        o = {**FIT_DEFAULTS, **given}
+        precision = o["precision"] or default_precision()
+        rtol, atol, ftol = tolerances(precision, o["rtol"], o["atol"], o["ftol"])
+        return cls(
+            loss=get_loss(o["loss"]), solver=o["solver"], init=o["init"], fixed=o["fixed"],
+            bounds=o["bounds"], cutoff=o["cutoff"], subsample=o["subsample"], seed=o["seed"],
+            multistart=int(o["multistart"]), max_steps=int(o["max_steps"]), rtol=rtol,
+            atol=atol, ftol=ftol, scan=bool(o["scan"]), precision=precision,
+            covariance=o["covariance"],
+        )

@@ -1,0 +1,150 @@
+"""From the best solve to a :class:`FitResult`: the verdict, the end point on its bounds, the
+covariance in physical units, and the figures of the fit."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from ..errors import FitError
+from .data import Selection
+from .options import Settings
+from .parameters import Scalars
+from .problem import Problem
+from .result import FitResult
+from .solve import Solved
+from .solvers import solver_label
+from .statistics import covariance
+from .transforms import at_bound
+
+#: The names of ``optimistix.RESULTS`` (its documented entries), looked up by attribute.
+RESULT_NAMES = ("successful", "max_steps_reached", "singular", "breakdown", "stagnation",
+                "conlim", "nonfinite_input", "nonlinear_max_steps_reached",
+                "nonlinear_divergence", "nonfinite")
+MAX_STEPS_HINT = " Increase `max_steps` or start elsewhere."
+
+
+@dataclasses.dataclass(frozen=True)
+class Prepared:
+    """A fit as it was prepared for the solver: what its result reports besides the solve."""
+
+    model: object
+    settings: Settings
+    scalars: Scalars
+    selection: Selection
+    problem: Problem
+    x_start: np.ndarray  # the starting point, flat, physical units
+    z0: np.ndarray  # its box coordinates (free scalars)
+    name: str  # the table's
+
+
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """``success`` and optimistix's vocabulary for it: ``status`` (a result name, or
+    ``nonfinite``, ``stalled``, ``degenerate``) and a ``message`` saying what to do."""
+
+    success: bool
+    status: str
+    message: str
+
+
+def result_name(result) -> str:
+    """The name of an ``optimistix.RESULTS`` item (``"unknown"`` for one not documented)."""
+    for name in RESULT_NAMES:
+        item = getattr(optx.RESULTS, name, None)
+        if item is not None and bool(result == item):
+            return name
+    return "unknown"
+
+
+def verdict(best: Solved, ftol: float) -> Verdict:
+    """Success only where optimistix succeeded at a finite point, the optimality test
+    ``ω ≤ ftol`` holds, and the cost depends on some free parameter there."""
+    if not best.finite:
+        return Verdict(False, "nonfinite", (
+            "the solver produced non-finite parameters or cost; the result reports the starting "
+            "point. Try another `init`, `multistart`, or the `log` loss."
+        ))
+    status = result_name(best.result)
+    if not best.successful:
+        message = optx.RESULTS[best.result]
+        if status in ("nonlinear_max_steps_reached", "max_steps_reached"):
+            message += MAX_STEPS_HINT
+        return Verdict(False, status, message)
+    omega = float(best.omega)
+    if not omega <= ftol:
+        return Verdict(False, "stalled", (
+            f"the solver stopped moving before the optimality test held (the Gauss-Newton step "
+            f"would still lower the cost by a fraction {omega:.2g} > ftol = {ftol:g}); try "
+            f"another `init`, `multistart`, or a looser `ftol`."
+        ))
+    if not np.any(np.diagonal(np.asarray(best.jtj, float)) > 0):
+        return Verdict(False, "degenerate", (
+            "the cost does not depend on any free parameter at the end point (JᵀJ is zero): "
+            "the data determine nothing here; check the data's scale and the `loss`."
+        ))
+    return Verdict(True, status, "")
+
+
+def _by_param(model, flat):
+    out, i = {}, 0
+    for p in model.params:
+        v = flat[i : i + p.size]
+        out[p.name] = float(v[0]) if p.shape == () else [float(a) for a in v]
+        i += p.size
+    return out
+
+
+def _end_point(prep: Prepared, best: Solved):
+    """``(x, bound)``: the flat end point in physical units, scalars on a bound put exactly on
+    it (the starting point where the solve was not finite), and the free scalars' bound flags."""
+    z = np.asarray(best.z, float) if best.finite else np.asarray(prep.z0, float)
+    bound = at_bound(z)
+    free = list(prep.scalars.free)
+    lo, hi = prep.scalars.lo[free], prep.scalars.hi[free]
+    x_free = np.asarray(prep.problem.physical(jnp.asarray(z)), float)
+    x_free = np.where(bound < 0, lo, np.where(bound > 0, hi, x_free))
+    return np.asarray(prep.problem.full_vector(jnp.asarray(x_free)), float), bound
+
+
+def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) -> FitResult:
+    """The :class:`FitResult` of the best solve (raises :class:`FitError` on failure if
+    ``throw``); sends the ``done`` event. ``costs``: the cost of each start; ``times``:
+    ``perf_counter`` readings at the start, before the solves and after them."""
+    model, s, free = prep.model, prep.settings, list(prep.scalars.free)
+    v = verdict(best, s.ftol)
+    if throw and not v.success:
+        raise FitError(f"{model.name} fit of {prep.name or 'table'} did not converge: {v.message}")
+    x, bound = _end_point(prep, best)
+    cost = float(best.cost) if best.finite else float("nan")
+    cov_free, regular = covariance(best.jtj, best.meat, best.dxdz, 2 * cost, float(best.m),
+                                   bound == 0, s.covariance)
+    message = v.message
+    if best.finite and not regular and not message:
+        message = "JᵀJ is singular at the optimum: some parameters are not identified by the data"
+    names = model.flat_names()
+    cov = np.zeros((len(x), len(x)))
+    cov[np.ix_(free, free)] = cov_free
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    se[[f for f, b in zip(free, bound) if b != 0]] = np.nan
+    t0, t1, t2 = times
+    t3 = time.perf_counter()
+    result = FitResult(
+        model_name=model.name, params=_by_param(model, x), stderr=_by_param(model, se),
+        names=names, x=x, cov=cov, free=[names[i] for i in free],
+        fixed=[names[i] for i in prep.scalars.fixed],
+        at_bound={names[f]: ("lower" if b < 0 else "upper") for f, b in zip(free, bound) if b},
+        cost=cost, metrics={k: float(val) for k, val in best.metrics.items()},
+        success=v.success, status=v.status, message=message, steps=int(best.steps),
+        starts=[float(c) for c in costs], loss=s.loss.label, solver=solver_label(s.solver),
+        n_cells=prep.selection.n_used, n_total=prep.selection.n_total,
+        init=_by_param(model, prep.x_start), wall_time=t3 - t0,
+        timings={"prepare": t1 - t0, "solve": t2 - t1, "finish": t3 - t2},
+        table=prep.name, covariance=s.covariance, optimality=float(best.omega),
+    )
+    events.emit("done", success=v.success, cost=result.cost)
+    return result

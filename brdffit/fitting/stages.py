@@ -1,0 +1,151 @@
+"""The stages of one start, and the best of several starts.
+
+Each start runs through up to three stages, each beginning where the previous one ended:
+
+1. **scan** (``scan=True``, models with a free lobe width): the start and copies with the lobe
+   widths shifted by ``SCAN_SHIFTS`` (a factor of about 8 either way), each solved to the
+   loose ``SCAN_FTOL`` on ``SCAN_FRACTION`` of the blocks; the lowest cost goes on (a real table
+   can have several minima: a narrow lobe on the peak, a wide one on the glossy tail);
+2. **warm** (selections of at least ``WARM_MIN_CHUNKS`` blocks): the optimum on
+   ``WARM_FRACTION`` of the blocks, a fraction of a full pass per step;
+3. **full**: the whole selection, to the optimality test (:class:`~.solvers.Optimality`).
+
+After the first stage the solver's quadratic model is Newton's, ``JᵀJ`` plus the second-order
+term measured at the previous stage's end point (:func:`.solve.second_order`): on real
+materials the residual at the optimum is mostly model error and Gauss–Newton alone converges
+only linearly. Each stage also starts with the trust region the previous one ended with. The
+blocks are interleaved (:func:`.data.select`), so every leading subset is an even sample of the
+table. Measurements and the history of these choices: ``docs/design/fitting.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .data import FitData
+from .events import Events
+from .problem import Problem
+from .solve import Solved, cost_floor, second_order, solve
+from .solvers import with_ftol, with_initial_step
+
+#: The warm start runs when the selection has at least this many blocks of cells ...
+WARM_MIN_CHUNKS = 8
+#: ... on this fraction of them (at least one block; evenly spread cells, see
+#: :func:`brdffit.fitting.data.select`).
+WARM_FRACTION = 1 / 16
+#: The start scan solves each candidate on this fraction of the blocks (at least one), to the
+#: loose tolerance ``SCAN_FTOL``.
+SCAN_FRACTION = 1 / 32
+SCAN_FTOL = 1e-4
+#: Shifts of the log-scaled parameters (the lobe widths), in box units, of the scan's
+#: candidate starts: a box unit is the whole log range (``α ∈ [10⁻³, 1]``: 0.3 is a factor 8).
+SCAN_SHIFTS = (-0.3, 0.3)
+
+
+def starts(z0: np.ndarray, multistart: int, seed: int) -> list[np.ndarray]:
+    """The default start, then ``multistart`` perturbed copies (normal steps of 0.15 of each
+    parameter's range in the box coordinates, clamped to the box)."""
+    rng = np.random.default_rng(seed + 1)
+    return [z0] + [
+        np.clip(z0 + rng.normal(0.0, 0.15, size=z0.shape), 0.0, 1.0) for _ in range(int(multistart))
+    ]
+
+
+def candidates(problem: Problem, z0: np.ndarray) -> list[np.ndarray]:
+    """``z0`` and copies with every free log-scaled parameter (a lobe width) shifted by each of
+    ``SCAN_SHIFTS`` (clamped to the box); only ``z0`` if the model has none free."""
+    log = np.asarray(problem.log, bool)
+    if not np.any(log):
+        return [z0]
+    return [z0] + [np.where(log, np.clip(z0 + d, 0.0, 1.0), z0) for d in SCAN_SHIFTS]
+
+
+def plan(chunks: int, scan: bool) -> list[tuple[str, int]]:
+    """The stages of a start as ``(name, blocks)``, for a selection of ``chunks`` blocks."""
+    stages = []
+    if scan:
+        stages.append(("scan", max(1, round(chunks * SCAN_FRACTION))))
+    if chunks >= WARM_MIN_CHUNKS:
+        stages.append(("warm", max(1, round(chunks * WARM_FRACTION))))
+    stages.append(("full", chunks))
+    return stages
+
+
+@dataclasses.dataclass(frozen=True)
+class Run:
+    """The parts of one fit that every solve shares: the problem, the cells, their cost floor
+    (:func:`.solve.cost_floor`), the step limit, and where progress events go."""
+
+    problem: Problem
+    data: FitData
+    floor: object
+    max_steps: int
+    events: Events
+
+    def solve(self, solver, z0, active: int, second=None) -> Solved:
+        """:func:`.solve.solve` over the first ``active`` blocks, with their share of the cost
+        floor."""
+        chunks = self.problem.chunks
+        floor = self.floor if active == chunks else self.floor * active / chunks
+        self.events.floor = float(floor)
+        return solve(self.problem, solver, z0, self.data, floor, self.max_steps, active, second)
+
+    def scan(self, solver, z0, active: int) -> np.ndarray:
+        """The end point of the best of the :func:`candidates`, each solved on the first
+        ``active`` blocks to ``SCAN_FTOL`` (costs compared on the same cells)."""
+        loose = with_ftol(solver, SCAN_FTOL)
+        best = (np.inf, z0)
+        cands = candidates(self.problem, z0)
+        for k, z in enumerate(cands):
+            with self.events.partial("scan"):
+                out = self.solve(loose, z, active)
+            cost = float(out.cost)
+            self.events.emit("scan", candidate=k, of=len(cands), cost=cost, steps=int(out.steps))
+            if out.finite and cost < best[0]:
+                best = (cost, out.z)
+        return best[1]
+
+    def warm(self, solver, z0, active: int, second):
+        """``(z, solver)``: the end point on the first ``active`` blocks and the solver with
+        the trust region it ended with (the start and ``solver`` unchanged if not finite)."""
+        with self.events.partial("warm"):
+            out = self.solve(solver, z0, active, second)
+        self.events.emit("warm-done", blocks=active, of=self.problem.chunks, steps=int(out.steps))
+        if out.finite:
+            return out.z, with_initial_step(solver, float(out.step_size))
+        return z0, solver
+
+    def start(self, solver, z0, k: int, scan: bool = True) -> Solved:
+        """Start ``k`` from ``z0`` through its stages (module docstring)."""
+        self.events.start = k
+        second = None
+        stages = plan(self.problem.chunks, scan and len(candidates(self.problem, z0)) > 1)
+        for i, (name, active) in enumerate(stages):
+            if i:  # Newton's model from the second stage on, measured where the last ended
+                second = second_order(self.problem, z0, self.data, active)
+            if name == "scan":
+                z0 = self.scan(solver, z0, active)
+            elif name == "warm":
+                z0, solver = self.warm(solver, z0, active, second)
+            else:
+                return self.solve(solver, z0, active, second)
+
+
+def best_of(problem: Problem, solver, data: FitData, zs, max_steps: int, scan: bool,
+            events: Events) -> tuple[Solved, list[float]]:
+    """Solve from every start in ``zs``; the best solve (:meth:`Solved.better_than`) and the
+    cost of each start."""
+    run = Run(problem, data, cost_floor(problem, data), max_steps, events)
+    ftol = float(solver.ftol)
+    best, costs = None, []
+    for k, z0 in enumerate(zs):
+        events.emit("start", start=k, of=len(zs))
+        out = run.start(solver, z0, k, scan)
+        costs.append(out.ranked_cost)
+        events.emit("start-done", start=k, cost=costs[-1], steps=int(out.steps),
+                    success=out.converged(ftol))
+        if best is None or out.better_than(best, ftol):
+            best = out
+    return best, costs

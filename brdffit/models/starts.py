@@ -1,0 +1,61 @@
+r"""Data-driven starting points of the built-in models: their ``Model.start`` hooks.
+
+The fitter reads a few features off the data (:class:`brdffit.fitting.start.Features`): the
+diffuse albedo ``ρ_d``, a GGX roughness ``α`` from the width of the specular peak and a Schlick
+``F0`` from its height. Each hook here maps them onto one family's parameters. The maps are
+conventions, not formulas of the sources: a start for the solver, which the fitter then moves
+inside the parameters' bounds.
+
+* **metallic-roughness models** (``disney``, ``mitsuba-principled``, ``gltf-pbr``): all three
+  write ``α = roughness²``, so ``roughness = √α``; data whose mean ``F0`` exceeds
+  :data:`METAL_F0` read as a metal (colour from ``F0``, ``metallic`` 0.9), others as a
+  dielectric (colour from ``ρ_d``, ``metallic`` 0.1); Disney's and Mitsuba's ``specular`` is
+  the dielectric ``F0 = 0.08 specular``.
+* **Mitsuba's rough conductor**: ``α`` as measured (both ``alpha_u`` and ``alpha_v`` when
+  anisotropic); the tint form's ``specular_reflectance`` is ``F0`` (its Fresnel is 1), the
+  complex-IOR form takes ``η = 1`` and the ``k`` whose normal-incidence reflectance
+  ``((η − 1)² + k²)/((η + 1)² + k²) = k²/(4 + k²)`` is ``F0``: ``k = 2 √(F0/(1 − F0))``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: A mean ``F0`` above this reads as a metal (dielectrics have ``F0`` of about 0.02 to 0.08).
+METAL_F0 = 0.25
+
+
+def metallic_roughness(features, metal: bool | None = None) -> dict:
+    """``base_color``, ``metallic`` and ``roughness`` (module docstring); ``metal`` forces one
+    reading of the data (``None``: decided by :data:`METAL_F0`)."""
+    if metal is None:
+        metal = float(np.mean(features.f0)) > METAL_F0
+    return {
+        "base_color": np.clip(features.f0 if metal else features.diffuse, 0.02, 0.98),
+        "metallic": 0.9 if metal else 0.1,
+        "roughness": float(np.clip(np.sqrt(features.alpha), 0.05, 0.95)),
+    }
+
+
+def specular_level(features) -> float:
+    """Disney's and Mitsuba's ``specular``: the dielectric ``F0 = 0.08 specular``."""
+    return float(np.clip(np.mean(features.f0) / 0.08, 0.05, 0.95))
+
+
+def principled(features) -> dict:
+    """The start of ``disney`` and ``mitsuba-principled``: :func:`metallic_roughness` and
+    :func:`specular_level`; the lobes the features say nothing about keep their defaults."""
+    return {**metallic_roughness(features), "specular": specular_level(features)}
+
+
+def rough_conductor(features, anisotropic: bool = False, fresnel: str = "ior") -> dict:
+    """The start of Mitsuba's ``roughconductor`` variants (module docstring)."""
+    alpha = float(features.alpha)
+    out = {"alpha_u": alpha, "alpha_v": alpha} if anisotropic else {"alpha": alpha}
+    f0 = np.clip(np.asarray(features.f0, float), 0.01, 0.95)
+    if fresnel == "tint":
+        out["specular_reflectance"] = f0
+    else:
+        out["eta"] = np.ones(3)
+        out["k"] = 2.0 * np.sqrt(f0 / (1.0 - f0))
+    return out
