@@ -170,6 +170,24 @@ def test_unknown_option_names_the_valid_ones(samples_csv):
         brdffit.fit(samples_csv, "ggx", max_step=5)
 
 
+def test_a_fit_options_object_and_keywords_take_one_path(samples_csv, result):
+    from brdffit.config import FitOptions
+
+    preset = FitOptions(model="ggx", loss="log", max_steps=2, description="a preset")
+    again = brdffit.fit(samples_csv, "ggx", preset, max_steps=200)  # the keyword wins
+    np.testing.assert_allclose(again.x, result.x, rtol=1e-12)
+    assert again.provenance["options"] == result.provenance["options"]
+    with pytest.raises(brdffit.ConfigError, match=r"'multistart' must be an integer in \[0, 1000\]"):
+        brdffit.fit(None, "ggx", FitOptions(multistart=-1))  # checked before the input
+    with pytest.raises(TypeError, match="FitOptions or a mapping"):
+        brdffit.fit(samples_csv, "ggx", "ggx")
+    from brdffit.fitting import fit as low_level_fit
+    from brdffit.io import read_path
+
+    low = low_level_fit(read_path(samples_csv), "ggx", {"max_steps": 2}, throw=False)
+    assert not low.success and low.status == "nonlinear_max_steps_reached"
+
+
 # -- measurement uncertainties --------------------------------------------------------------
 def _noisy_with_sigma(tmp_path, per_channel: bool):
     """The ggx sample list with Gaussian noise of a known, strongly varying σ per sample, and

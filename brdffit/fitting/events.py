@@ -48,7 +48,7 @@ class Events:
             self.callback(event, info)
 
     @contextlib.contextmanager
-    def partial(self, stage: str):
+    def in_stage(self, stage: str):
         """Marks the step events of a solve on a subset of the cells while it runs."""
         self.stage = stage
         try:

@@ -83,8 +83,7 @@ class Solved(eqx.Module):
     def converged(self, ftol: float) -> bool:
         """optimistix succeeded at a finite point where the optimality test ``ω ≤ ftol``
         holds."""
-        return (self.successful and not np.any(np.isnan(self.z)) and np.isfinite(float(self.cost))
-                and float(self.omega) <= ftol)
+        return self.successful and self.finite and float(self.omega) <= ftol
 
     def better_than(self, other: Solved, ftol: float) -> bool:
         """A converged solve is better than one that did not converge; between two of the same

@@ -99,7 +99,7 @@ class Run:
         best = (np.inf, z0)
         cands = candidates(self.problem, z0)
         for k, z in enumerate(cands):
-            with self.events.partial("scan"):
+            with self.events.in_stage("scan"):
                 out = self.solve(loose, z, active)
             cost = float(out.cost)
             self.events.emit("scan", candidate=k, of=len(cands), cost=cost, steps=int(out.steps))
@@ -110,7 +110,7 @@ class Run:
     def warm(self, solver, z0, active: int, second):
         """``(z, solver)``: the end point on the first ``active`` blocks and the solver with
         the trust region it ended with (the start and ``solver`` unchanged if not finite)."""
-        with self.events.partial("warm"):
+        with self.events.in_stage("warm"):
             out = self.solve(solver, z0, active, second)
         self.events.emit("warm-done", blocks=active, of=self.problem.chunks, steps=int(out.steps))
         if out.finite:
