@@ -56,12 +56,11 @@ class PinCores(WorkerPlugin):
     name = "brdffit-pin-cores"
 
     def __init__(self, groups):
-        self.groups = groups
+        self.groups = groups  # non-empty: see open_client
 
     def setup(self, worker):
         try:
             k = int(worker.name)
         except (TypeError, ValueError):
             return
-        if self.groups:
-            pin_process(self.groups[k % len(self.groups)])
+        pin_process(self.groups[k % len(self.groups)])

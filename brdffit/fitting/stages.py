@@ -121,7 +121,7 @@ class Run:
         """Start ``k`` from ``z0`` through its stages (module docstring)."""
         self.events.start = k
         second = None
-        stages = plan(self.problem.chunks, scan and len(candidates(self.problem, z0)) > 1)
+        stages = plan(self.problem.chunks, scan and any(self.problem.log))  # a lobe width to shift
         for i, (name, active) in enumerate(stages):
             if i:  # Newton's model from the second stage on, measured where the last ended
                 second = second_order(self.problem, z0, self.data, active)
