@@ -150,7 +150,7 @@ def warm_blocks(n_cells: int) -> str:
     from brdffit.fitting.stages import plan
 
     chunks = -(-n_cells // CHUNK_CELLS)
-    warm = dict(plan(chunks, scan=False)).get("warm")
+    warm = dict(plan(chunks, CHUNK_CELLS, scan=False)).get("warm")
     if warm is None:
         return "no blocks (table too small)"
     return f"{warm} of {chunks} blocks of {CHUNK_CELLS} cells"

@@ -12,7 +12,7 @@ import pytest
 import brdffit
 from brdffit.errors import ConfigError, FitError, UnknownNameError
 from brdffit.fitting import LOSSES, FitResult, Subsample, get_loss
-from brdffit.fitting.data import CHUNK_CELLS, select
+from brdffit.fitting.data import CHUNK_CELLS, block_order, select
 from brdffit.fitting.losses import RELATIVE_FLOOR, huber_residual
 from brdffit.fitting.normal_form import compress, gram, normal_form
 from brdffit.fitting.problem import Problem
@@ -320,6 +320,28 @@ def test_select_pads_to_whole_blocks_with_zero_weight():
     # interleaved: block j holds rows j, j + 2, ... of the padded selection (padding rows last)
     order = np.arange(2 * CHUNK_CELLS).reshape(-1, 2).T.ravel()
     np.testing.assert_array_equal(pad, order >= n)
+
+
+@pytest.mark.parametrize("chunks", [1, 2, 5, 8, 34, 272])
+def test_block_order_spreads_every_leading_subset(chunks):
+    """The first m blocks' row offsets are a permutation prefix spread over [0, chunks): no gap
+    between neighbouring offsets (cyclically) wider than 2 chunks / m."""
+    order = block_order(chunks)
+    assert sorted(order) == list(range(chunks)) and order[0] == 0
+    for m in range(1, chunks + 1):
+        offs = np.sort(order[:m])
+        gaps = np.diff(np.concatenate([offs, [offs[0] + chunks]]))
+        assert gaps.max() <= max(1, 2 * chunks / m), (m, offs)
+
+
+def test_select_interleaves_blocks_in_block_order():
+    n = 5 * CHUNK_CELLS
+    wi = np.tile([[0.0, 0.6, 0.8]], (n, 1))
+    rgb = np.arange(n, dtype=float)[:, None].repeat(3, 1) * 1e-6  # a row's value is its index
+    sel = select(SampleSet(wi, wi.copy(), rgb, np.ones(n, bool)), get_loss("log"))
+    rows = np.rint(np.asarray(sel.data.rgb)[:, 0] * 1e6).astype(int).reshape(5, -1)
+    for b, k in enumerate(block_order(5)):
+        np.testing.assert_array_equal(rows[b], np.arange(k, n, 5))
 
 
 def test_select_option_errors():

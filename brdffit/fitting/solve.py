@@ -31,10 +31,10 @@ from .statistics import metrics_from
 #: without the option, none is set.
 CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": "LIBRARY_FUSION_TYPE_DOT"}
 
-#: The second-order term is measured on every ``SECOND_STRIDE``-th cell of the first block
-#: (about 8,000 cells of an evenly spread subset): it only sets the solver's quadratic model, so
-#: its sampling error changes the convergence rate, never the answer.
-SECOND_STRIDE = 4
+#: The second-order term is measured on the first ``SECOND_CELLS`` cells (the leading blocks:
+#: an evenly spread subset, :func:`.data.select`): it only sets the solver's quadratic model,
+#: so its sampling error changes the convergence rate, never the answer.
+SECOND_CELLS = 32768
 
 
 class Solved(eqx.Module):
@@ -69,6 +69,11 @@ class Solved(eqx.Module):
     def successful(self) -> bool:
         """optimistix ended the solve without an error (optimal or not)."""
         return bool(self.result == optx.RESULTS.successful)
+
+    @property
+    def ran_out(self) -> bool:
+        """optimistix stopped at the solve's step limit."""
+        return bool(self.result == optx.RESULTS.nonlinear_max_steps_reached)
 
     @property
     def finite(self) -> bool:
@@ -151,18 +156,24 @@ def cost_floor(problem: Problem, data: FitData):
     return _jitted_floor(problem, data, COST_NOISE[problem.compute_dtype])
 
 
+def _second_rows(problem: Problem, data: FitData) -> int:
+    """The rows the second-order term is measured on: whole leading blocks, at least
+    ``SECOND_CELLS`` cells (all of a smaller selection)."""
+    block = data.wi.shape[0] // problem.chunks
+    return min(problem.chunks, -(-SECOND_CELLS // block)) * block
+
+
 @eqx.filter_jit
 def _jitted_second(problem: Problem, z, data):
-    """:meth:`Problem.block_second_order` on every ``SECOND_STRIDE``-th cell of block 0."""
-    n = data.wi.shape[0] // problem.chunks
-    sub = jax.tree.map(lambda a: a[:n:SECOND_STRIDE], data)
-    return problem.block_second_order(z, sub)
+    """:meth:`Problem.block_second_order` on the first :func:`_second_rows` cells."""
+    n = _second_rows(problem, data)
+    return problem.block_second_order(z, jax.tree.map(lambda a: a[:n], data))
 
 
 def second_order(problem: Problem, z, data: FitData, target: int) -> np.ndarray:
     """The second-order term at ``z`` (:func:`_jitted_second`) scaled to ``target`` blocks (the
     sum grows with the number of cells); zeros if it is not finite."""
     s = np.asarray(_jitted_second(problem, jnp.asarray(z), data))
-    n = data.wi.shape[0] // problem.chunks
-    scale = target * n / len(range(0, n, SECOND_STRIDE))
+    block = data.wi.shape[0] // problem.chunks
+    scale = target * block / _second_rows(problem, data)
     return s * scale if np.all(np.isfinite(s)) else np.zeros_like(s)

@@ -4,16 +4,16 @@ Each start runs through up to three stages, each beginning where the previous on
 
 1. **scan** (``scan=True``, models with a free lobe width): the start and copies with the lobe
    widths shifted by ``SCAN_SHIFTS`` (a factor of about 8 either way), each solved to the
-   loose ``SCAN_FTOL`` on ``SCAN_FRACTION`` of the blocks; the lowest cost goes on (a real table
+   loose ``SCAN_FTOL`` on the first blocks holding ``SCAN_CELLS`` cells; the lowest cost goes on (a real table
    can have several minima: a narrow lobe on the peak, a wide one on the glossy tail);
 2. **warm** (selections of at least ``WARM_MIN_CHUNKS`` blocks): the optimum on
    ``WARM_FRACTION`` of the blocks, a fraction of a full pass per step;
 3. **full**: the whole selection, to the optimality test (:class:`~.solvers.Optimality`).
 
 After the first stage the solver's quadratic model is Newton's, ``JᵀJ`` plus the second-order
-term measured at the previous stage's end point (:func:`.solve.second_order`): on real
-materials the residual at the optimum is mostly model error and Gauss–Newton alone converges
-only linearly. Each stage also starts with the trust region the previous one ended with. The
+term (:func:`.solve.second_order`), measured afresh every ``ROUND_STEPS`` steps
+(:meth:`Run.solve`): on real materials the residual at the optimum is mostly model error and
+Gauss–Newton alone converges only linearly. Each stage also starts with the trust region the previous one ended with. The
 blocks are interleaved (:func:`.data.select`), so every leading subset is an even sample of the
 table. Measurements and the history of these choices: ``docs/design/fitting.md``.
 """
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import equinox as eqx
 import numpy as np
 
 from .data import FitData
@@ -35,13 +36,15 @@ WARM_MIN_CHUNKS = 8
 #: ... on this fraction of them (at least one block; evenly spread cells, see
 #: :func:`brdffit.fitting.data.select`).
 WARM_FRACTION = 1 / 16
-#: The start scan solves each candidate on this fraction of the blocks (at least one), to the
-#: loose tolerance ``SCAN_FTOL``.
-SCAN_FRACTION = 1 / 32
+#: The start scan solves each candidate on the first blocks holding at least this many cells
+#: (an evenly spread subset; all of a smaller selection), to the loose tolerance ``SCAN_FTOL``.
+SCAN_CELLS = 8192
 SCAN_FTOL = 1e-4
 #: Shifts of the log-scaled parameters (the lobe widths), in box units, of the scan's
 #: candidate starts: a box unit is the whole log range (``α ∈ [10⁻³, 1]``: 0.3 is a factor 8).
 SCAN_SHIFTS = (-0.3, 0.3)
+#: Solves run in rounds of at most this many steps (:meth:`Run.solve`).
+ROUND_STEPS = 10
 
 
 def starts(z0: np.ndarray, multistart: int, seed: int) -> list[np.ndarray]:
@@ -62,11 +65,12 @@ def candidates(problem: Problem, z0: np.ndarray) -> list[np.ndarray]:
     return [z0] + [np.where(log, np.clip(z0 + d, 0.0, 1.0), z0) for d in SCAN_SHIFTS]
 
 
-def plan(chunks: int, scan: bool) -> list[tuple[str, int]]:
-    """The stages of a start as ``(name, blocks)``, for a selection of ``chunks`` blocks."""
+def plan(chunks: int, block_cells: int, scan: bool) -> list[tuple[str, int]]:
+    """The stages of a start as ``(name, blocks)``, for a selection of ``chunks`` blocks of
+    ``block_cells`` cells each."""
     stages = []
     if scan:
-        stages.append(("scan", max(1, round(chunks * SCAN_FRACTION))))
+        stages.append(("scan", min(chunks, -(-SCAN_CELLS // block_cells))))
     if chunks >= WARM_MIN_CHUNKS:
         stages.append(("warm", max(1, round(chunks * WARM_FRACTION))))
     stages.append(("full", chunks))
@@ -84,13 +88,30 @@ class Run:
     max_steps: int
     events: Events
 
-    def solve(self, solver, z0, active: int, second=None) -> Solved:
-        """:func:`.solve.solve` over the first ``active`` blocks, with their share of the cost
-        floor."""
+    def solve(self, solver, z0, active: int, newton: bool = False) -> Solved:
+        """Up to ``max_steps`` solver steps from ``z0`` over the first ``active`` blocks, with
+        their share of the cost floor, in rounds of ``ROUND_STEPS`` (the last one shorter).
+
+        A round that runs out of steps hands its end point and trust region to the next. With
+        ``newton``, each round's quadratic model adds the second-order term measured where the
+        round starts (:func:`.solve.second_order`): far from the optimum a term measured once
+        goes stale, and a model that it made indefinite falls back to Gauss–Newton's linear
+        rate. Every round of the default step limit has the same length, so one compiled
+        program serves them all.
+        """
         chunks = self.problem.chunks
         floor = self.floor if active == chunks else self.floor * active / chunks
         self.events.floor = float(floor)
-        return solve(self.problem, solver, z0, self.data, floor, self.max_steps, active, second)
+        total, out = 0, None
+        while total < self.max_steps:
+            steps = min(ROUND_STEPS, self.max_steps - total)
+            second = second_order(self.problem, z0, self.data, active) if newton else None
+            out = solve(self.problem, solver, z0, self.data, floor, steps, active, second)
+            total += int(out.steps)
+            if not (out.ran_out and out.finite):
+                break
+            z0, solver = out.z, with_initial_step(solver, float(out.step_size))
+        return eqx.tree_at(lambda s: s.steps, out, np.asarray(total))
 
     def scan(self, solver, z0, active: int) -> np.ndarray:
         """The end point of the best of the :func:`candidates`, each solved on the first
@@ -107,11 +128,11 @@ class Run:
                 best = (cost, out.z)
         return best[1]
 
-    def warm(self, solver, z0, active: int, second):
+    def warm(self, solver, z0, active: int, newton: bool):
         """``(z, solver)``: the end point on the first ``active`` blocks and the solver with
         the trust region it ended with (the start and ``solver`` unchanged if not finite)."""
         with self.events.in_stage("warm"):
-            out = self.solve(solver, z0, active, second)
+            out = self.solve(solver, z0, active, newton)
         self.events.emit("warm-done", blocks=active, of=self.problem.chunks, steps=int(out.steps))
         if out.finite:
             return out.z, with_initial_step(solver, float(out.step_size))
@@ -120,17 +141,17 @@ class Run:
     def start(self, solver, z0, k: int, scan: bool = True) -> Solved:
         """Start ``k`` from ``z0`` through its stages (module docstring)."""
         self.events.start = k
-        second = None
-        stages = plan(self.problem.chunks, scan and any(self.problem.log))  # a lobe width to shift
+        chunks = self.problem.chunks
+        block_cells = self.data.wi.shape[0] // chunks
+        stages = plan(chunks, block_cells, scan and any(self.problem.log))  # a lobe width to shift
         for i, (name, active) in enumerate(stages):
-            if i:  # Newton's model from the second stage on, measured where the last ended
-                second = second_order(self.problem, z0, self.data, active)
+            newton = i > 0  # Newton's model from the second stage on
             if name == "scan":
                 z0 = self.scan(solver, z0, active)
             elif name == "warm":
-                z0, solver = self.warm(solver, z0, active, second)
+                z0, solver = self.warm(solver, z0, active, newton)
             else:
-                return self.solve(solver, z0, active, second)
+                return self.solve(solver, z0, active, newton)
 
 
 def best_of(problem: Problem, solver, data: FitData, zs, max_steps: int, scan: bool,
