@@ -19,7 +19,7 @@ import numpy as np
 import optimistix as optx
 
 from .data import FitData
-from .normal_form import normal_form
+from .normal_form import normal_form, over_blocks
 from .problem import Problem
 from .solvers import COST_NOISE, end_optimality
 from .statistics import metrics_from
@@ -31,9 +31,11 @@ from .statistics import metrics_from
 #: without the option, none is set.
 CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": "LIBRARY_FUSION_TYPE_DOT"}
 
-#: The second-order term is measured on the first ``SECOND_CELLS`` cells (the leading blocks:
-#: an evenly spread subset, :func:`.data.select`): it only sets the solver's quadratic model,
-#: so its sampling error changes the convergence rate, never the answer.
+#: The second-order term of a stage is measured on its leading blocks holding at least
+#: ``SECOND_CELLS`` cells (an evenly spread subset, :func:`.data.select`; all of a smaller
+#: stage): it only sets the solver's quadratic model, so its sampling error changes the
+#: convergence rate, never the answer. ``beckmann``'s term is noisy: 8,192 cells made some full
+#: fits crawl (``docs/design/fitting.md``).
 SECOND_CELLS = 32768
 
 
@@ -156,24 +158,27 @@ def cost_floor(problem: Problem, data: FitData):
     return _jitted_floor(problem, data, COST_NOISE[problem.compute_dtype])
 
 
-def _second_rows(problem: Problem, data: FitData) -> int:
-    """The rows the second-order term is measured on: whole leading blocks, at least
-    ``SECOND_CELLS`` cells (all of a smaller selection)."""
+def second_blocks(problem: Problem, data: FitData, target: int) -> int:
+    """The leading blocks the second-order term of a stage on ``target`` blocks is measured on."""
     block = data.wi.shape[0] // problem.chunks
-    return min(problem.chunks, -(-SECOND_CELLS // block)) * block
+    return min(target, -(-SECOND_CELLS // block))
 
 
 @eqx.filter_jit
-def _jitted_second(problem: Problem, z, data):
-    """:meth:`Problem.block_second_order` on the first :func:`_second_rows` cells."""
-    n = _second_rows(problem, data)
-    return problem.block_second_order(z, jax.tree.map(lambda a: a[:n], data))
+def _jitted_second(problem: Problem, z, data, blocks):
+    """:meth:`Problem.block_second_order` summed over the first ``blocks`` blocks (traced: one
+    program for every stage)."""
+    p = z.shape[0]
+    acc = jnp.promote_types(z.dtype, jnp.float32)
+    return over_blocks(lambda c, b: c + problem.block_second_order(z, b).astype(acc),
+                       jnp.zeros((p, p), acc), data, problem.chunks, blocks)
 
 
 def second_order(problem: Problem, z, data: FitData, target: int) -> np.ndarray:
-    """The second-order term at ``z`` (:func:`_jitted_second`) scaled to ``target`` blocks (the
-    sum grows with the number of cells); zeros if it is not finite."""
-    s = np.asarray(_jitted_second(problem, jnp.asarray(z), data))
-    block = data.wi.shape[0] // problem.chunks
-    scale = target * block / _second_rows(problem, data)
-    return s * scale if np.all(np.isfinite(s)) else np.zeros_like(s)
+    """The second-order term at ``z`` for a stage on the first ``target`` blocks, measured on
+    :func:`second_blocks` of them and scaled to ``target`` (the sum grows with the number of
+    cells); zeros if it is not finite."""
+    blocks = second_blocks(problem, data, target)
+    s = np.asarray(_jitted_second(problem, jnp.asarray(z), data, jnp.int32(blocks)))
+    s = s * (target / blocks)
+    return s if np.all(np.isfinite(s)) else np.zeros_like(s)

@@ -11,8 +11,8 @@ Each start runs through up to three stages, each beginning where the previous on
 3. **full**: the whole selection, to the optimality test (:class:`~.solvers.Optimality`).
 
 After the first stage the solver's quadratic model is Newton's, ``JᵀJ`` plus the second-order
-term (:func:`.solve.second_order`), measured afresh every ``ROUND_STEPS`` steps
-(:meth:`Run.solve`): on real materials the residual at the optimum is mostly model error and
+term (:func:`.solve.second_order`), alternating with Gauss–Newton's model every
+``ROUND_STEPS`` steps while the solve has not converged (:meth:`Run.solve`): on real materials the residual at the optimum is mostly model error and
 Gauss–Newton alone converges only linearly. Each stage also starts with the trust region the previous one ended with. The
 blocks are interleaved (:func:`.data.select`), so every leading subset is an even sample of the
 table. Measurements and the history of these choices: ``docs/design/fitting.md``.
@@ -93,24 +93,27 @@ class Run:
         their share of the cost floor, in rounds of ``ROUND_STEPS`` (the last one shorter).
 
         A round that runs out of steps hands its end point and trust region to the next. With
-        ``newton``, each round's quadratic model adds the second-order term measured where the
-        round starts (:func:`.solve.second_order`): far from the optimum a term measured once
-        goes stale, and a model that it made indefinite falls back to Gauss–Newton's linear
-        rate. Every round of the default step limit has the same length, so one compiled
-        program serves them all.
+        ``newton``, the first round's quadratic model adds the second-order term measured where
+        it starts (:func:`.solve.second_order`); after a round that ran out of steps the next
+        one uses the other model, Gauss–Newton's or Newton's with the term measured afresh: a
+        term measured far from the optimum, or on too few cells, can make a positive definite
+        but wrong model whose steps crawl, and Gauss–Newton alone converges only linearly.
+        Every round of the default step limit has the same length, so one compiled program
+        serves them all.
         """
         chunks = self.problem.chunks
         floor = self.floor if active == chunks else self.floor * active / chunks
         self.events.floor = float(floor)
-        total, out = 0, None
+        total, out, model = 0, None, newton
         while total < self.max_steps:
             steps = min(ROUND_STEPS, self.max_steps - total)
-            second = second_order(self.problem, z0, self.data, active) if newton else None
+            second = second_order(self.problem, z0, self.data, active) if model else None
             out = solve(self.problem, solver, z0, self.data, floor, steps, active, second)
             total += int(out.steps)
             if not (out.ran_out and out.finite):
                 break
             z0, solver = out.z, with_initial_step(solver, float(out.step_size))
+            model = newton and not model  # a round that ran out: the other model next
         return eqx.tree_at(lambda s: s.steps, out, np.asarray(total))
 
     def scan(self, solver, z0, active: int) -> np.ndarray:
