@@ -4,17 +4,19 @@ Each start runs through up to three stages, each beginning where the previous on
 
 1. **scan** (``scan=True``, models with a free lobe width): the start and copies with the lobe
    widths shifted by ``SCAN_SHIFTS`` (a factor of about 8 either way), each solved to the
-   loose ``SCAN_FTOL`` on the first blocks holding ``SCAN_CELLS`` cells; the lowest cost goes on (a real table
-   can have several minima: a narrow lobe on the peak, a wide one on the glossy tail);
+   loose ``SCAN_FTOL`` on the first blocks holding ``SCAN_CELLS`` cells; the lowest cost goes
+   on (a real table can have several minima: a narrow lobe on the peak, a wide one on the
+   glossy tail);
 2. **warm** (selections of at least ``WARM_MIN_CHUNKS`` blocks): the optimum on
    ``WARM_FRACTION`` of the blocks, a fraction of a full pass per step;
 3. **full**: the whole selection, to the optimality test (:class:`~.solvers.Optimality`).
 
 After the first stage the solver's quadratic model is Newton's, ``JᵀJ`` plus the second-order
 term (:func:`.solve.second_order`), alternating with Gauss–Newton's model every
-``ROUND_STEPS`` steps while the solve has not converged (:meth:`Run.solve`): on real materials the residual at the optimum is mostly model error and
-Gauss–Newton alone converges only linearly. Each stage also starts with the trust region the previous one ended with. The
-blocks are interleaved (:func:`.data.select`), so every leading subset is an even sample of the
+``ROUND_STEPS`` steps while the solve has not converged (:meth:`Run.solve`): on real materials
+the residual at the optimum is mostly model error and Gauss–Newton alone converges only
+linearly. Each stage also starts with the trust region the previous one ended with. The blocks
+are interleaved (:func:`.data.select`), so every leading subset is an even sample of the
 table. Measurements and the history of these choices: ``docs/design/fitting.md``.
 """
 
