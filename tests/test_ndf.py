@@ -259,6 +259,35 @@ def test_beckmann_lambda_matches_erf_form_literally():
     np.testing.assert_allclose(beckmann_lambda_exact(jnp.asarray(1 / a)), ref, rtol=1e-9, atol=1e-15)
 
 
+def test_beckmann_lambda_derivative_rule_against_finite_differences():
+    """The JVP rule ``dΛ/du = e^{−1/u²}/(2√π)`` against central differences of the erf form
+    (RTR eq. 9.38, SciPy), and its own derivative (Newton's second-order term uses it) against
+    differences of the rule; the isotropic ``1/a = α tan θ`` equals the anisotropic form."""
+    from jax.scipy.special import erfc as erfc_jax
+    from scipy.special import erf
+
+    def ref(u):
+        a = 1.0 / u
+        return (erf(a) - 1) / 2 + np.exp(-a * a) / (2 * a * np.sqrt(np.pi))
+
+    u = np.logspace(-0.6, 1.0, 60)
+    h = 1e-6 * u
+    d1 = np.asarray(jax.vmap(jax.grad(beckmann_lambda_exact))(jnp.asarray(u)))
+    # absolute: the differences of erf(a) - 1 carry rounding of about 1e-16 / h
+    np.testing.assert_allclose(d1, (ref(u + h) - ref(u - h)) / (2 * h), rtol=1e-6, atol=1e-9)
+    # down to u = 0.03 against JAX's own derivative of the formula (erfc, exp, 1/u)
+    plain = lambda v: 0.5 * (jnp.exp(-1.0 / v**2) * v / np.sqrt(np.pi) - erfc_jax(1.0 / v))
+    v = jnp.asarray(np.logspace(-1.5, 1.0, 60))
+    np.testing.assert_allclose(jax.vmap(jax.grad(beckmann_lambda_exact))(v),
+                               jax.vmap(jax.grad(plain))(v), rtol=1e-9, atol=1e-300)
+    d2 = np.asarray(jax.vmap(jax.grad(jax.grad(beckmann_lambda_exact)))(jnp.asarray(u)))
+    rule = lambda v: np.exp(-1.0 / v**2) / (2 * np.sqrt(np.pi))
+    np.testing.assert_allclose(d2, (rule(u + h) - rule(u - h)) / (2 * h), rtol=1e-6, atol=1e-12)
+    assert float(jax.grad(beckmann_lambda_exact)(jnp.asarray(0.0))) == 0.0  # the normal
+    w = _dirs(np.linspace(0.0, 1.5, 20), phi=0.9)
+    np.testing.assert_allclose(Beckmann(0.27).inv_a(w), Beckmann(0.27, 0.27).inv_a(w), rtol=1e-13)
+
+
 def test_blinn_phong_uses_beckmann_lambda_at_walters_alpha():
     w = _dirs(THETAS)
     for a in [0.01, 0.2, 0.9]:
@@ -345,6 +374,7 @@ def _fd_check(f, x0, rel=1e-6):
 MAKERS = {
     "ggx": lambda p: GGX(p[0], p[1]),
     "beckmann": lambda p: Beckmann(p[0], p[1]),
+    "beckmann-isotropic": lambda p: Beckmann(p[0] * p[1] / 0.31),
     "beckmann-rational": lambda p: Beckmann(p[0], p[1], lambda_approx=True),
     "blinn-phong": lambda p: BlinnPhong.from_beckmann_alpha(p[0]),
     "gtr": lambda p: GTR(p[0], p[1]),

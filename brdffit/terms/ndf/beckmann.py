@@ -13,18 +13,33 @@ from .base import NDF, clamp_alpha
 _INV_SQRT_PI = 0.5641895835477563
 
 
+@jax.custom_jvp
 def beckmann_lambda_exact(inv_a):
-    r"""Smith Λ of Beckmann, RTR eq. 9.38, as a function of ``1/a = α tan θ`` (eq. 9.37).
+    r"""Smith Λ of Beckmann, RTR eq. 9.38, as a function of ``u = 1/a = α tan θ`` (eq. 9.37).
 
-    .. math::  \Lambda(a) = \tfrac12\left(\frac{e^{-a^2}}{a\sqrt\pi} - \operatorname{erfc}(a)\right)
+    .. math::  \Lambda(a) = \tfrac12\left(\frac{e^{-a^2}}{a\sqrt\pi} - \operatorname{erfc}(a)\right),
+        \qquad \frac{d\Lambda}{du} = \frac{e^{-1/u^2}}{2\sqrt\pi}
 
     the same as 9.38 with ``erf(a) − 1 = −erfc(a)`` (no cancellation at large ``a``). Using
-    ``1/a`` keeps the normal direction (``a = ∞``, ``Λ = 0``) finite, values and gradients.
+    ``u = 1/a`` keeps the normal direction (``a = ∞``, ``Λ = 0``) finite, values and gradients.
+    The derivative (``dΛ/da = −e^{−a²}/(2√π a²)`` times ``da/du = −a²``) is the JVP rule: one
+    ``exp`` the value already has, where differentiating ``erfc`` and ``1/u`` costs a fit's
+    tangent pass more than the rest of the model.
     """
     ok = inv_a > 1e-6
     a = 1.0 / jnp.where(ok, inv_a, 1.0)
     lam = 0.5 * (jnp.exp(-a * a) * inv_a * _INV_SQRT_PI - erfc(a))
     return jnp.where(ok, lam, 0.0)
+
+
+@beckmann_lambda_exact.defjvp
+def _beckmann_lambda_exact_jvp(primals, tangents):
+    (inv_a,), (du,) = primals, tangents
+    ok = inv_a > 1e-6
+    a = 1.0 / jnp.where(ok, inv_a, 1.0)
+    e = jnp.exp(-a * a)
+    lam = jnp.where(ok, 0.5 * (e * inv_a * _INV_SQRT_PI - erfc(a)), 0.0)
+    return lam, jnp.where(ok, (0.5 * _INV_SQRT_PI) * e, 0.0) * du
 
 
 def beckmann_lambda_rational(inv_a):
@@ -58,11 +73,13 @@ class Beckmann(NDF):
     alpha_x: jax.Array
     alpha_y: jax.Array
     lambda_approx: bool = eqx.field(static=True)
+    isotropic: bool = eqx.field(static=True)
 
     def __init__(self, alpha_x, alpha_y=None, *, lambda_approx=False):
         self.alpha_x = clamp_alpha(alpha_x)
         self.alpha_y = self.alpha_x if alpha_y is None else clamp_alpha(alpha_y)
         self.lambda_approx = bool(lambda_approx)
+        self.isotropic = alpha_y is None
 
     def D(self, wm):  # noqa: N802
         ax, ay = self.alpha_x, self.alpha_y
@@ -74,7 +91,10 @@ class Beckmann(NDF):
         return jnp.where(up, jnp.exp(log_d), 0.0)
 
     def inv_a(self, w):
-        """``1/a = α tan θ`` with ``α² = α_x² cos²φ + α_y² sin²φ`` (RTR eqs. 9.37, 9.51)."""
+        """``1/a = α tan θ`` with ``α² = α_x² cos²φ + α_y² sin²φ`` (RTR eqs. 9.37, 9.51; the
+        isotropic form skips the azimuth, and ``tan θ`` is then free of ``α``)."""
+        if self.isotropic:
+            return self.alpha_x * safe_sqrt(tan2_theta(w))
         c2, s2 = cos2_sin2_phi(w)
         alpha2 = self.alpha_x**2 * c2 + self.alpha_y**2 * s2
         return safe_sqrt(alpha2 * tan2_theta(w))
