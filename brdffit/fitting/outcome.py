@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 import time
 
-import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
@@ -99,16 +98,16 @@ def _by_param(model, flat):
     return out
 
 
-def _end_point(prep: Prepared, best: Solved):
+def end_point(prep: Prepared, best: Solved):
     """``(x, bound)``: the flat end point in physical units, scalars on a bound put exactly on
     it (the starting point where the solve was not finite), and the free scalars' bound flags."""
     z = np.asarray(best.z, float) if best.finite else np.asarray(prep.z0, float)
     bound = at_bound(z)
     free = list(prep.scalars.free)
-    lo, hi = prep.scalars.lo[free], prep.scalars.hi[free]
-    x_free = np.asarray(prep.problem.physical(jnp.asarray(z)), float)
-    x_free = np.where(bound < 0, lo, np.where(bound > 0, hi, x_free))
-    return np.asarray(prep.problem.full_vector(jnp.asarray(x_free)), float), bound
+    x = prep.problem.flat_host(z)
+    x[free] = np.where(bound < 0, prep.scalars.lo[free],
+                       np.where(bound > 0, prep.scalars.hi[free], x[free]))
+    return x, bound
 
 
 def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) -> FitResult:
@@ -119,7 +118,7 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
     v = verdict(best, s.ftol)
     if throw and not v.success:
         raise FitError(f"{model.name} fit of {prep.name or 'table'} did not converge: {v.message}")
-    x, bound = _end_point(prep, best)
+    x, bound = end_point(prep, best)
     cost = float(best.cost) if best.finite else float("nan")
     cov_free, regular = covariance(best.jtj, best.meat, best.dxdz, 2 * cost, float(best.m),
                                    bound == 0, s.covariance)

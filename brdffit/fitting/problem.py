@@ -18,7 +18,7 @@ from ..models.registry import Model
 from .data import FitData
 from .losses import Loss
 from .statistics import cell_metric_sums
-from .transforms import to_physical
+from .transforms import to_physical, to_physical_host
 
 
 class Problem(eqx.Module):
@@ -62,6 +62,14 @@ class Problem(eqx.Module):
 
     def full_vector(self, x_free):
         return self.x_fixed.at[np.asarray(self.free, int)].set(x_free.astype(self.x_fixed.dtype))
+
+    def flat_host(self, u) -> np.ndarray:
+        """The whole flat parameter vector at box coordinates ``u``, in NumPy (physical units;
+        the fixed scalars at their values): :meth:`physical` and :meth:`full_vector` on the
+        host, without compiling anything."""
+        x = np.array(self.x_fixed, float)
+        x[list(self.free)] = to_physical_host(u, self.slo, self.shi, np.asarray(self.log, bool))
+        return x
 
     def predict(self, x_free, data: FitData):
         """Model ``f_r`` ``(n, 3)`` on the selected cells, in the compute dtype."""

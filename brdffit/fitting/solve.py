@@ -143,7 +143,7 @@ def solve(problem: Problem, solver, z0, data: FitData, floor, max_steps: int, ac
     quadratic model (none by default); returns host (NumPy) values."""
     if second is None:
         second = np.zeros((len(z0), len(z0)))
-    args = (problem, solver, jnp.asarray(z0), data, floor, max_steps, jnp.int32(active),
+    args = (problem, solver, jnp.asarray(z0), data, floor, max_steps, np.int32(active),
             jnp.asarray(second, jnp.result_type(float)))
     return jax.tree.map(np.asarray, _jitted_solve()(*args))
 
@@ -154,8 +154,9 @@ def _jitted_floor(problem: Problem, data, noise):
 
 
 def cost_floor(problem: Problem, data: FitData):
-    """:meth:`Problem.cost_floor` of all of ``data`` at the compute dtype's noise level."""
-    return _jitted_floor(problem, data, COST_NOISE[problem.compute_dtype])
+    """:meth:`Problem.cost_floor` of all of ``data`` at the compute dtype's noise level, a NumPy
+    scalar (so that scaling it to a stage's blocks compiles nothing)."""
+    return np.asarray(_jitted_floor(problem, data, COST_NOISE[problem.compute_dtype]))
 
 
 def second_blocks(problem: Problem, data: FitData, target: int) -> int:
@@ -179,6 +180,6 @@ def second_order(problem: Problem, z, data: FitData, target: int) -> np.ndarray:
     :func:`second_blocks` of them and scaled to ``target`` (the sum grows with the number of
     cells); zeros if it is not finite."""
     blocks = second_blocks(problem, data, target)
-    s = np.asarray(_jitted_second(problem, jnp.asarray(z), data, jnp.int32(blocks)))
+    s = np.asarray(_jitted_second(problem, jnp.asarray(z), data, np.int32(blocks)))
     s = s * (target / blocks)
     return s if np.all(np.isfinite(s)) else np.zeros_like(s)

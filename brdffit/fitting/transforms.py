@@ -48,6 +48,14 @@ def to_physical(z, slo, shi, log):
     return jnp.where(log, jnp.exp(jnp.where(log, s, 0.0)), s)
 
 
+def to_physical_host(z, slo, shi, log) -> np.ndarray:
+    """:func:`to_physical` in NumPy, for the host-side bookkeeping after a solve (a ``jnp``
+    call there would compile a small program of its own in every fresh process)."""
+    z = np.clip(np.asarray(z, float), 0.0, 1.0)
+    s = np.asarray(slo, float) + (np.asarray(shi, float) - np.asarray(slo, float)) * z
+    return np.where(log, np.exp(np.where(log, s, 0.0)), s)
+
+
 def to_box(x, slo, shi, log) -> np.ndarray:
     """``z(x)``: physical value → box position (NumPy), clamped to ``[0, 1]``."""
     x = np.asarray(x, float)
