@@ -13,6 +13,8 @@ written). For each material and model, with the default options of :func:`brdffi
 * steps, ``success``, the final cost, ``optimality`` (``ω``), the literature's error metrics
   (``rmse_cosine``: Ngan et al. 2005's cosine-weighted RMSE; ``rmse_log``: Löw et al. 2012's
   log RMSE) on the cells used, the parameters at a bound;
+* for a model that refines a simpler one (``two-lobe-ggx`` of ``ggx``, when both run): its
+  cost against the simpler model's on each material (it must never be above it);
 * for ``beckmann``: the fitted roughness ``α`` against the geometric mean of the Cook–Torrance
   ``m`` published by Ngan 2005 and Löw 2012 (``published_roughness.csv``): the fraction within a
   factor 1.5 and the Spearman rank correlation.
@@ -53,7 +55,9 @@ sys.path.insert(0, str(HERE))
 #: Every registered model a MERL table identifies (isotropic; ggx-aniso and aps-gaussian's two
 #: widths are not separable at phi_h = 0 and are left out).
 MODELS = ("ggx", "beckmann", "blinn-phong", "gtr", "two-lobe-ggx", "disney", "ggx-ms",
-          "ggx-coupled", "aps-velvet", "aps-satin", "aps-vgroove", "cloth-sheen", "cloth-velvet")
+          "ggx-coupled", "aps-velvet", "aps-satin", "aps-vgroove", "cloth-sheen", "cloth-velvet",
+          "gltf-pbr", "mitsuba-principled", "mitsuba-roughconductor",
+          "mitsuba-roughconductor-beckmann", "mitsuba-roughconductor-tint")
 
 
 def load_render():
@@ -118,6 +122,14 @@ def summarize(rows, model: str, lit: dict) -> str:
             within = np.mean(np.maximum(a / b, b / a) <= 1.5)
             line += (f"\n{'':13s} roughness vs published (geometric mean, {len(a)} materials): "
                      f"within x1.5 {within:.0%}, Spearman {spearman(a, b):.3f}")
+    base = brdffit.get_model(model).refines
+    if base is not None:  # a model that contains a simpler one must never end above it
+        simple = {r["material"]: r["cost"] for r in rows if r["model"] == base[0]}
+        ratio = [r["cost"] / simple[r["material"]] for r in mine if r["material"] in simple]
+        if ratio:
+            line += (f"\n{'':13s} cost against {base[0]} ({len(ratio)} materials): at or below "
+                     f"(rel. 1e-6) on {sum(x <= 1 + 1e-6 for x in ratio)}, median ratio "
+                     f"{statistics.median(ratio):.4f}, max {max(ratio):.6f}")
     return line
 
 

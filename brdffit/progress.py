@@ -24,7 +24,8 @@ class Bar:
     """A ``progress(event, info)`` callback drawing a ``tqdm.auto`` bar.
 
     Fit events: ``setup`` names the bar (the model), ``start`` opens it with the number of
-    starts as its total, ``step``/``warm-step`` update the postfix (``step``, ``cost``),
+    starts as its total, ``step``/``warm-step`` update the postfix (``step``, ``cost``; so do
+    ``base-step``/``base-warm-step``, the simpler model a refined model is started from),
     ``start-done`` advances the bar by one, ``done`` closes it. Sampler events: ``sample-step``
     (``step``, ``of``) advances by one step. :meth:`close` is idempotent.
     """
@@ -48,8 +49,8 @@ class Bar:
             if bar.total != info.get("of"):
                 bar.total = info.get("of")
                 bar.refresh()
-        elif event in ("step", "warm-step"):
-            stage = "warm" if event == "warm-step" else "step"
+        elif event in ("step", "warm-step", "base-step", "base-warm-step"):
+            stage = {"step": "step", "warm-step": "warm"}.get(event, "simpler model")
             self._open(None, "start").set_postfix_str(
                 f"{stage} {info.get('step')}, cost {float(info.get('cost', float('nan'))):.5g}"
             )

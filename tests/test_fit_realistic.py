@@ -95,6 +95,34 @@ def test_a_metal_has_no_diffuse_term(cells, model_name):
     assert all(s > 0 for s in res.stderr["f0"]) and res.stderr["alpha"] > 0
 
 
+@pytest.mark.parametrize("name", ["alumina-oxide", "beige-fabric"])
+def test_two_lobe_ggx_starts_from_ggx_and_never_ends_above_it(cells, name):
+    """``two-lobe-ggx`` contains ``ggx`` (blend 0 or 1) and starts from its optimum: the ``ggx``
+    fit runs first (``base-`` events, then a ``base`` event with its cost), and the two-lobe
+    fit converges honestly at or below that cost. Alumina-oxide's peak and haze want both
+    lobes (the full table: 478,951 with one lobe, 112,725 with two); beige-fabric's one lobe
+    is at ``α = 1`` and a second adds nothing."""
+    events = []
+    one = brdffit.fit(cells[name], "ggx")
+    two = brdffit.fit(cells[name], "two-lobe-ggx", throw=False,
+                      progress=lambda e, info: events.append((e, info)))
+    check_honest(two, "two-lobe-ggx")
+    assert two.cost <= one.cost * (1 + 1e-6), (two.cost, one.cost)
+    names = [e for e, _ in events]
+    assert names[0] == "setup" and names[1] == "base-start" and "start" in names
+    base = [info for e, info in events if e == "base"]
+    assert len(base) == 1 and base[0]["model"] == "ggx" and base[0]["success"]
+    assert base[0]["cost"] == pytest.approx(one.cost, rel=1e-9)
+    assert names.index("base") < names.index("start")
+    # the start reported is the ggx optimum with the blend at 0
+    assert two.init["mix"] == 0.0 and two.init["alpha_1"] == pytest.approx(one.params["alpha"])
+    # a user's init replaces the refined start: no ggx fit first
+    events.clear()
+    brdffit.fit(cells[name], "two-lobe-ggx", init=two.params, throw=False,
+                progress=lambda e, info: events.append((e, info)))
+    assert not any(e.startswith("base") for e, _ in events)
+
+
 #: Materials whose published Cook–Torrance roughness the default ``beckmann`` fit reproduces
 #: within a factor 1.5 (the geometric mean of Ngan 2005 and Löw 2012).
 AGREE = ("alumina-oxide", "brass", "nickel", "specular-black-phenolic", "ss440")

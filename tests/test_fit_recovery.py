@@ -37,8 +37,8 @@ CASES = {
         ("short-tail-metal", {"diffuse": [0.05] * 3, "f0": [0.5] * 3, "alpha": 0.05, "gamma": 3.0}),
     ],
     "two-lobe-ggx": [
-        ("coated", {"diffuse": [0.1] * 3, "f0_1": [0.5, 0.4, 0.3], "alpha_1": 0.02,
-                        "f0_2": [0.1] * 3, "alpha_2": 0.3}),
+        ("coated", {"diffuse": [0.1] * 3, "f0": [0.5, 0.4, 0.3], "alpha_1": 0.02,
+                    "alpha_2": 0.3, "mix": 0.2}),
     ],
     "disney": [
         ("everything-on", {"base_color": [0.6, 0.3, 0.15], "subsurface": 0.3, "metallic": 0.2,

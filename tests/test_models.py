@@ -29,10 +29,7 @@ WHITE = {
     "beckmann": dict(diffuse=0.0, f0=1.0, alpha=0.3),
     "gtr": dict(diffuse=0.0, f0=1.0, alpha=0.3, gamma=1.5),
     "blinn-phong": dict(diffuse=0.0, f0=1.0, alpha=0.3),
-    # Two Schlick lobes each tend to F = 1 at grazing incidence, so the sum is not bounded by
-    # construction there (a known property of summed lobes): F0 is split between the lobes and
-    # the bound is checked up to 60° incidence only (see ENERGY_MAX_THETA).
-    "two-lobe-ggx": dict(diffuse=0.0, f0_1=0.5, alpha_1=0.1, f0_2=0.5, alpha_2=0.4),
+    "two-lobe-ggx": dict(diffuse=0.0, f0=1.0, alpha_1=0.1, alpha_2=0.4, mix=0.5),
     "disney": dict(
         base_color=1.0, metallic=1.0, roughness=0.5, sheen=0.0, clearcoat=0.0, subsurface=0.0,
         anisotropic=0.8,
@@ -64,7 +61,7 @@ WHITE = {
 
 
 #: Largest incidence angle (degrees) at which the white-setting bound is asserted (default 80).
-ENERGY_MAX_THETA = {"two-lobe-ggx": 60.0}
+ENERGY_MAX_THETA: dict[str, float] = {}
 
 
 def _random_pairs(n, seed, min_cos=0.05):
@@ -264,13 +261,20 @@ def test_ggx_model_matches_numpy_transcription():
     np.testing.assert_allclose(get_model("ggx")(p, wi, wo), ref, rtol=1e-10)
 
 
-def test_two_lobe_ggx_is_the_sum_of_its_lobes():
+def test_two_lobe_ggx_is_the_blend_of_its_lobes_and_contains_ggx():
+    """``ρ_d/π + (1 − m) f_s(α₁) + m f_s(α₂)`` against the NumPy GGX lobe; ``m = 0`` and
+    ``m = 1`` are ``ggx`` with ``α₁`` and ``α₂`` exactly (the fit starts there)."""
     wi, wo = _random_pairs(300, 9)
     a, b = np.asarray(wi), np.asarray(wo)
-    d, f1, f2 = np.array([0.1, 0.2, 0.3]), np.array([0.9, 0.5, 0.2]), np.array([0.05, 0.04, 0.03])
-    ref = _np_ggx_lobe(a, b, d, f1, 0.03) + _np_ggx_lobe(a, b, 0.0, f2, 0.4)
-    got = get_model("two-lobe-ggx")(dict(diffuse=d, f0_1=f1, alpha_1=0.03, f0_2=f2, alpha_2=0.4), wi, wo)
-    np.testing.assert_allclose(got, ref, rtol=1e-10)
+    d, f0 = np.array([0.1, 0.2, 0.3]), np.array([0.9, 0.5, 0.2])
+    two = get_model("two-lobe-ggx")
+    ref = _np_ggx_lobe(a, b, 0.0, f0, 0.03) * 0.7 + _np_ggx_lobe(a, b, 0.0, f0, 0.4) * 0.3
+    got = two(dict(diffuse=d, f0=f0, alpha_1=0.03, alpha_2=0.4, mix=0.3), wi, wo)
+    np.testing.assert_allclose(got, ref + d / np.pi, rtol=1e-10)
+    for m, alpha in ((0.0, 0.03), (1.0, 0.4)):
+        one = get_model("ggx")(dict(diffuse=d, f0=f0, alpha=alpha), wi, wo)
+        got = two(dict(diffuse=d, f0=f0, alpha_1=0.03, alpha_2=0.4, mix=m), wi, wo)
+        np.testing.assert_array_equal(np.asarray(got), np.asarray(one))
 
 
 def test_ggx_aniso_reduces_to_isotropic_and_matches_rtr_9_53():

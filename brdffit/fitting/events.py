@@ -35,6 +35,7 @@ class Events:
         self.start = 0
         self.stage = None  # None, or a solve on a subset of the cells ("warm", "scan")
         self.floor = 0.0  # the constant the solver's cost carries (Problem.cost_floor)
+        self.prefix = ""  # "base-" while the simpler model of a refined fit runs
 
     def __enter__(self) -> Events:
         _RUNNING[self.id] = self
@@ -45,7 +46,17 @@ class Events:
 
     def emit(self, event: str, **info) -> None:
         if self.callback is not None:
-            self.callback(event, info)
+            self.callback(self.prefix + event, info)
+
+    @contextlib.contextmanager
+    def nested(self, prefix: str):
+        """Every event of the fit run inside (a refined model's simpler model, say) is sent with
+        ``prefix`` in front of its name: ``base-start``, ``base-step``..."""
+        self.prefix = prefix
+        try:
+            yield
+        finally:
+            self.prefix, self.start = "", 0
 
     @contextlib.contextmanager
     def in_stage(self, stage: str):

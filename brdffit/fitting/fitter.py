@@ -10,14 +10,17 @@ and metrics (:mod:`.outcome`, :mod:`.statistics`) → :class:`~.result.FitResult
 
 from __future__ import annotations
 
+import dataclasses
 import time
+
+import numpy as np
 
 from ..models.registry import get_model
 from .data import check_enough, select
 from .events import Events
 from .options import Settings, fit_options
-from .outcome import Prepared, assemble
-from .parameters import free_scalars
+from .outcome import Prepared, assemble, end_point
+from .parameters import assign, free_scalars
 from .problem import Problem
 from .result import FitResult
 from .solvers import COST_NOISE, make_solver
@@ -37,7 +40,9 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
         progress: ``callback(event, info)`` with events ``setup``, ``start``, ``scan-step`` and
             ``scan`` (one per candidate of the start scan), ``warm-step`` and ``warm-done``
             (large tables: the warm start on a subset of the blocks), ``step`` (the whole
-            selection), ``start-done``, ``done``. Step events carry the cost of the cells of
+            selection), ``start-done``, ``done``; a model that refines a simpler one
+            (``Model.refines``) first sends the simpler fit's events prefixed ``base-`` and a
+            ``base`` event with its ``model``, ``cost``, ``steps`` and ``success``. Step events carry the cost of the cells of
             their stage. Each fit's events go to its own callback, also with fits running in
             several threads at once.
         throw: raise :class:`~brdffit.errors.FitError` when the solver does not converge;
@@ -60,21 +65,59 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
         events.emit("setup", n_cells=prep.selection.n_used, n_free=len(prep.scalars.free),
                     model=model.name)
         t1 = time.perf_counter()
-        zs = starts(prep.z0, settings.multistart, settings.seed)
+        zs, scan = starts(prep.z0, settings.multistart, settings.seed), settings.scan
+        if model.refines is not None and settings.init is None:
+            prep, first = refined(prep, solver, events)
+            zs, scan = first + starts(prep.z0, settings.multistart, settings.seed)[1:], False
         best, costs = best_of(prep.problem, solver, prep.selection.data, zs, settings.max_steps,
-                              settings.scan, events)
+                              scan, events)
         t2 = time.perf_counter()
     return assemble(prep, best, costs, (t0, t1, t2), events, throw)
+
+
+def refined(prep: Prepared, solver, events: Events) -> tuple[Prepared, list[np.ndarray]]:
+    """``(prep, zs)`` for a model that refines a simpler one (``Model.refines``): the simpler
+    model is fitted first on the same cells, with the same options except the user's
+    ``fixed`` and ``bounds`` (they name this model's parameters), from its own data-driven start
+    and scan; ``zs`` are the box coordinates of the starts ``refines`` maps its optimum to
+    (each clamped to this fit's bounds; fixed scalars keep their values), and ``prep`` takes
+    the first as its starting point. The simpler fit's events carry the prefix ``base-``; a
+    ``base`` event then reports its ``model``, ``cost``, ``steps`` and ``success``."""
+    name, to_starts = prep.model.refines
+    simple = get_model(name)
+    settings = dataclasses.replace(prep.settings, fixed=None, bounds=None)
+    sub = prepare_on(prep.selection, simple, settings, prep.name)
+    with events.nested("base-"):
+        out, _ = best_of(sub.problem, solver, sub.selection.data, [sub.z0], settings.max_steps,
+                         settings.scan, events)
+    events.emit("base", model=simple.name, cost=float(out.cost), steps=int(out.steps),
+                success=out.converged(float(solver.ftol)))
+    x_simple, _ = end_point(sub, out)
+    free, lo, hi = list(prep.scalars.free), prep.scalars.lo, prep.scalars.hi
+    xs = []
+    for values in to_starts(simple.unflatten(x_simple)):
+        x, given = prep.x_start.copy(), prep.x_start.copy()
+        assign(prep.model, values, given, f"start from {simple.name} of")
+        x[free] = np.clip(given[free], lo[free], hi[free])
+        xs.append(x)
+    prep = dataclasses.replace(prep, x_start=xs[0], z0=prep.scalars.to_box(xs[0]))
+    return prep, [prep.scalars.to_box(x) for x in xs]
 
 
 def prepare(table, model, settings: Settings) -> Prepared:
     """The cells, the free scalars, the starting point and the problem of a fit."""
     samples = table.to_samples()
-    scalars, x0 = free_scalars(model, settings.fixed, settings.bounds)
+    scalars, _ = free_scalars(model, settings.fixed, settings.bounds)
     sel = select(samples, settings.loss, cutoff=settings.cutoff, subsample=settings.subsample,
                  seed=settings.seed, dtype=settings.precision)
     check_enough(sel, len(scalars.free), samples.name)
+    return prepare_on(sel, model, settings, samples.name)
+
+
+def prepare_on(sel, model, settings: Settings, name: str) -> Prepared:
+    """:func:`prepare` on cells already selected."""
+    scalars, x0 = free_scalars(model, settings.fixed, settings.bounds)
     x_start = start_point(model, sel.host, scalars, x0, settings.init)
     problem = Problem.build(scalars, settings.loss, x_start, settings.precision, sel.chunks)
     return Prepared(model, settings, scalars, sel, problem, x_start, scalars.to_box(x_start),
-                    samples.name)
+                    name)

@@ -109,8 +109,6 @@ def by_name(feat: Features) -> dict:
     return {
         "diffuse": feat.diffuse,
         "f0": feat.f0,
-        "f0_1": feat.f0,
-        "f0_2": np.clip(0.3 * feat.f0, 0.005, 0.5),
         "alpha": feat.alpha,
         "alpha_x": feat.alpha,
         "alpha_y": feat.alpha,

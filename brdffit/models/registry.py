@@ -101,6 +101,14 @@ class Model:
     parameter's bounds and keeps the declared default for a parameter the hook does not name.
     Without a hook the features go to parameters by name (``diffuse``, ``f0``, ``alpha``...);
     :mod:`brdffit.models.starts` has the hooks of the built-in models.
+
+    ``refines`` (optional) names a simpler registered model that this one contains, with the
+    map from that model's fitted parameters to starts of this one: ``(name, fn)``,
+    ``fn(params) -> [{name: value}, ...]``. Unless the user gives ``init``, the fitter first
+    fits the simpler model on the same cells and then starts this one from each dict
+    (parameters a dict does not name keep the data-driven start); a start that reproduces the
+    simpler model exactly (a second lobe with ``F0 = 0``, say) makes the fit end at or below
+    the simpler model's cost.
     """
 
     name: str
@@ -113,6 +121,9 @@ class Model:
         default=None, repr=False, compare=False
     )
     start: Callable[[object], Mapping] | None = dataclasses.field(
+        default=None, repr=False, compare=False
+    )
+    refines: tuple[str, Callable[[Mapping], list[Mapping]]] | None = dataclasses.field(
         default=None, repr=False, compare=False
     )
 

@@ -14,6 +14,7 @@ from ..terms.fresnel import schlick
 from ..terms.microfacet import microfacet_specular
 from ..terms.ndf import GGX, GTR, Beckmann, BlinnPhong
 from .registry import Model, Param, register
+from .starts import two_lobes_from_one
 
 #: Bounds shared by the single-lobe models. Roughness ``alpha`` spans decades (polished metals
 #: near 0.005, paints near 0.3), so it is fitted in log space.
@@ -69,24 +70,38 @@ GGX_ANISO_MODEL = register(
 
 
 def _two_lobe_ggx(p, wi, wo):
-    lobe1 = microfacet_specular(GGX(p["alpha_1"]), partial(schlick, p["f0_1"]), wi, wo)
-    lobe2 = microfacet_specular(GGX(p["alpha_2"]), partial(schlick, p["f0_2"]), wi, wo)
-    return lambert(p["diffuse"], wi, wo) + lobe1 + lobe2
+    """Two GGX lobes blended, ``f = ρ_d/π + (1 − m) f_s(α₁) + m f_s(α₂)``, each ``f_s`` the full
+    microfacet lobe of RTR eq. 9.34 (its own height-correlated ``G2``) with the same Schlick
+    ``F0``: the "mix of two GGX NDFs ... a second roughness value and a blend amount" that RTR §9.8.1
+    describes at Imageworks, for the measured materials whose peak and haze one lobe cannot both
+    follow (Ngan et al. 2005). A convex blend of two energy-conserving lobes conserves energy, and
+    ``m = 0`` (or ``m = 1``) is ``ggx`` exactly, so the fit starts from the ``ggx`` optimum
+    (``refines``) and can only improve on it. Two lobes each with its own Schlick ``F0`` would not
+    contain ``ggx``: a lobe with ``F0 = 0`` still reflects ``(1 − cos θd)⁵`` at grazing angles."""
+    fresnel = partial(schlick, p["f0"])
+    sharp = microfacet_specular(GGX(p["alpha_1"]), fresnel, wi, wo)
+    broad = microfacet_specular(GGX(p["alpha_2"]), fresnel, wi, wo)
+    m = p["mix"]
+    return lambert(p["diffuse"], wi, wo) + (1.0 - m) * sharp + m * broad
 
 
 TWO_LOBE_GGX_MODEL = register(
     Model(
         name="two-lobe-ggx",
-        description="Lambert + a sharp and a broad GGX lobe (after Ngan et al. 2005, RTR §9.8.1)",
+        description=(
+            "Lambert + a blend of a sharp and a broad GGX lobe with one Schlick F "
+            "(RTR §9.8.1, Imageworks; Ngan et al. 2005)"
+        ),
         params=(
             DIFFUSE,
-            Param("f0_1", (3,), 0.0, 1.0, 0.04, "F0 of the sharp lobe (RGB)", per_channel=True),
+            F0,
             Param("alpha_1", (), *ALPHA_BOUNDS, 0.05, "roughness of the sharp lobe", log=True),
-            Param("f0_2", (3,), 0.0, 1.0, 0.02, "F0 of the broad lobe (RGB)", per_channel=True),
             Param("alpha_2", (), *ALPHA_BOUNDS, 0.3, "roughness of the broad lobe", log=True),
+            Param("mix", (), 0.0, 1.0, 0.2, "blend amount m: weight of the broad lobe"),
         ),
         fn=_two_lobe_ggx,
-        reference="RTR eq. 9.34 twice; Ngan et al. 2005",
+        reference="RTR §9.8.1 (Imageworks' mix of two GGX lobes), eq. 9.34 twice; Ngan et al. 2005",
+        refines=("ggx", two_lobes_from_one),
     )
 )
 

@@ -15,6 +15,10 @@ inside the parameters' bounds.
   anisotropic); the tint form's ``specular_reflectance`` is ``F0`` (its Fresnel is 1), the
   complex-IOR form takes ``η = 1`` and the ``k`` whose normal-incidence reflectance
   ``((η − 1)² + k²)/((η + 1)² + k²) = k²/(4 + k²)`` is ``F0``: ``k = 2 √(F0/(1 − F0))``.
+
+``two-lobe-ggx`` starts from a fitted ``ggx`` instead (``Model.refines``,
+:func:`two_lobes_from_one`): with the blend at 0 (or 1) it is the one-lobe fit, so the two-lobe
+fit cannot end above it.
 """
 
 from __future__ import annotations
@@ -59,3 +63,21 @@ def rough_conductor(features, anisotropic: bool = False, fresnel: str = "ior") -
         out["eta"] = np.ones(3)
         out["k"] = 2.0 * np.sqrt(f0 / (1.0 - f0))
     return out
+
+
+#: The second lobe of :func:`two_lobes_from_one` starts this factor wider (or narrower) than the
+#: fitted one: about the ratio of the haze to the peak width on glossy materials.
+SECOND_LOBE_WIDTH = 4.0
+
+
+def two_lobes_from_one(params) -> list[dict]:
+    """Starts of ``two-lobe-ggx`` from a fitted ``ggx`` (``params``): the fitted lobe with blend
+    ``m = 0`` beside a broad lobe ``SECOND_LOBE_WIDTH`` times wider, and with ``m = 1`` beside a
+    sharp lobe as many times narrower; each is the ``ggx`` fit exactly, and the solver then
+    blends in the second lobe where the data ask for it."""
+    alpha = float(params["alpha"])
+    same = {"diffuse": params["diffuse"], "f0": params["f0"]}
+    return [
+        {**same, "alpha_1": alpha, "alpha_2": min(1.0, SECOND_LOBE_WIDTH * alpha), "mix": 0.0},
+        {**same, "alpha_1": max(1e-3, alpha / SECOND_LOBE_WIDTH), "alpha_2": alpha, "mix": 1.0},
+    ]
