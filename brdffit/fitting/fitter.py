@@ -42,9 +42,9 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             (large tables: the warm start on a subset of the blocks), ``step`` (the whole
             selection), ``start-done``, ``done``; a model that refines a simpler one
             (``Model.refines``) first sends the simpler fit's events prefixed ``base-`` and a
-            ``base`` event with its ``model``, ``cost``, ``steps`` and ``success``. Step events carry the cost of the cells of
-            their stage. Each fit's events go to its own callback, also with fits running in
-            several threads at once.
+            ``base`` event with its ``model``, ``cost``, ``steps`` and ``success``. Step events
+            carry the cost of the cells of their stage. Each fit's events go to its own
+            callback, also with fits running in several threads at once.
         throw: raise :class:`~brdffit.errors.FitError` when the solver does not converge;
             with ``False`` the result carries ``success=False`` and the solver's message.
         **kwargs: the options, each described with its default in

@@ -72,6 +72,14 @@ COST_NOISE = {"float64": 1e-12, "float32": 1e-6}
 #: Ridge (relative to each diagonal entry of ``JᵀJ``) of the undamped step, so that a
 #: rank-deficient ``JᵀJ`` (a parameter the data do not identify) still gives a bounded step.
 GN_RIDGE = 1e-10
+#: Marquardt's scaling ``diag(JᵀJ)`` is floored at this fraction of its largest entry. A column
+#: that nearly vanishes (``aps-vgroove``'s tilt near 0, where the two facet lobes merge and the
+#: cost is even in the tilt) would otherwise get no damping at all: its Gauss–Newton step grows
+#: like ``1/tilt``, every step is rejected, and the trust region shrinks to 1e-17 while the
+#: well-determined parameters stay where they are (full tables of brass and chrome-steel ran
+#: into the 200-step limit). The floor damps such a column as if it were 1e-8 of the largest
+#: one; with the large step sizes of a solve going well it changes nothing.
+SCALING_FLOOR = 1e-8
 
 
 def _scaled_solve(mat, rhs):
@@ -186,8 +194,8 @@ class BoxDampedNewtonDescent(optx.DampedNewtonDescent):
     """The bounded Levenberg–Marquardt step (:func:`box_step`) with Marquardt's scaling.
 
     With ``s = 1/λ`` the trust region's step size, the damping is ``diag(JᵀJ)/s`` (floored at
-    ``1e-30`` of the largest entry, so a column that vanishes stays damped). ``undamped=True``
-    gives the Gauss–Newton step (a tiny ridge only) whatever the step size. ``J`` is the
+    ``SCALING_FLOOR`` of the largest entry, so a column that vanishes stays damped).
+    ``undamped=True`` gives the Gauss–Newton step (a tiny ridge only) whatever the step size. ``J`` is the
     solver's small Jacobian (the normal form), materialised. Records the point it was queried
     at (the last accepted iterate), which :class:`Optimality` reads.
     """
@@ -204,7 +212,7 @@ class BoxDampedNewtonDescent(optx.DampedNewtonDescent):
     def step(self, step_size, state):
         jtj, g, _ = _gn_parts(state.f_info)
         d2 = jnp.diagonal(jtj)
-        d2 = jnp.maximum(d2, 1e-30 * jnp.max(d2) + jnp.finfo(d2.dtype).tiny)
+        d2 = jnp.maximum(d2, SCALING_FLOOR * jnp.max(d2) + jnp.finfo(d2.dtype).tiny)
         lam = GN_RIDGE if self.undamped else 1.0 / jnp.maximum(step_size, 1e-300)
         return box_step(jtj, g, state.y, lam * d2), optx.RESULTS.successful
 
