@@ -65,10 +65,12 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
         events.emit("setup", n_cells=prep.selection.n_used, n_free=len(prep.scalars.free),
                     model=model.name)
         t1 = time.perf_counter()
-        zs, scan = starts(prep.z0, settings.multistart, settings.seed), settings.scan
+        first, scan = [], settings.scan
         if model.refines is not None and settings.init is None:
-            prep, first = refined(prep, solver, events)
-            zs, scan = first + starts(prep.z0, settings.multistart, settings.seed)[1:], False
+            (prep, first), scan = refined(prep, solver, events), False
+        zs = starts(prep.z0, settings.multistart, settings.seed)
+        if first:  # the refined starts; zs[0] is prep.z0, which is first[0]
+            zs = first + zs[1:]
         best, costs = best_of(prep.problem, solver, prep.selection.data, zs, settings.max_steps,
                               scan, events)
         t2 = time.perf_counter()
@@ -107,16 +109,17 @@ def refined(prep: Prepared, solver, events: Events) -> tuple[Prepared, list[np.n
 def prepare(table, model, settings: Settings) -> Prepared:
     """The cells, the free scalars, the starting point and the problem of a fit."""
     samples = table.to_samples()
-    scalars, _ = free_scalars(model, settings.fixed, settings.bounds)
+    scalars = free_scalars(model, settings.fixed, settings.bounds)  # bad names fail before select
     sel = select(samples, settings.loss, cutoff=settings.cutoff, subsample=settings.subsample,
                  seed=settings.seed, dtype=settings.precision)
-    check_enough(sel, len(scalars.free), samples.name)
-    return prepare_on(sel, model, settings, samples.name)
+    return prepare_on(sel, model, settings, samples.name, scalars)
 
 
-def prepare_on(sel, model, settings: Settings, name: str) -> Prepared:
-    """:func:`prepare` on cells already selected."""
-    scalars, x0 = free_scalars(model, settings.fixed, settings.bounds)
+def prepare_on(sel, model, settings: Settings, name: str, scalars=None) -> Prepared:
+    """:func:`prepare` on cells already selected (``scalars``: :func:`.parameters.free_scalars`
+    of ``model`` and ``settings``, if already made)."""
+    scalars, x0 = scalars or free_scalars(model, settings.fixed, settings.bounds)
+    check_enough(sel, len(scalars.free), name)
     x_start = start_point(model, sel.host, scalars, x0, settings.init)
     problem = Problem.build(scalars, settings.loss, x_start, settings.precision, sel.chunks)
     return Prepared(model, settings, scalars, sel, problem, x_start, scalars.to_box(x_start),

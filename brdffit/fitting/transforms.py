@@ -37,23 +37,25 @@ def bounds_in_s(lo, hi, log):
     )
 
 
+def _physical(xp, z, slo, shi, log):
+    z = xp.where(z < 0.0, 0.0, xp.where(z > 1.0, 1.0, z))
+    s = slo + (shi - slo) * z
+    return xp.where(log, xp.exp(xp.where(log, s, 0.0)), s)
+
+
 def to_physical(z, slo, shi, log):
     """``x(z)``: box position → physical value (``jnp``; differentiable; ``log`` a NumPy mask).
 
     ``z`` is clamped to ``[0, 1]`` with ``where`` (derivative 1 on the bounds themselves, where
     ``jnp.clip`` would halve it).
     """
-    z = jnp.where(z < 0.0, 0.0, jnp.where(z > 1.0, 1.0, z))
-    s = slo + (shi - slo) * z
-    return jnp.where(log, jnp.exp(jnp.where(log, s, 0.0)), s)
+    return _physical(jnp, z, slo, shi, log)
 
 
 def to_physical_host(z, slo, shi, log) -> np.ndarray:
     """:func:`to_physical` in NumPy, for the host-side bookkeeping after a solve (a ``jnp``
     call there would compile a small program of its own in every fresh process)."""
-    z = np.clip(np.asarray(z, float), 0.0, 1.0)
-    s = np.asarray(slo, float) + (np.asarray(shi, float) - np.asarray(slo, float)) * z
-    return np.where(log, np.exp(np.where(log, s, 0.0)), s)
+    return _physical(np, np.asarray(z, float), np.asarray(slo, float), np.asarray(shi, float), log)
 
 
 def to_box(x, slo, shi, log) -> np.ndarray:

@@ -106,9 +106,9 @@ class Model:
     map from that model's fitted parameters to starts of this one: ``(name, fn)``,
     ``fn(params) -> [{name: value}, ...]``. Unless the user gives ``init``, the fitter first
     fits the simpler model on the same cells and then starts this one from each dict
-    (parameters a dict does not name keep the data-driven start); a start that reproduces the
-    simpler model exactly (a second lobe with ``F0 = 0``, say) makes the fit end at or below
-    the simpler model's cost.
+    (parameters a dict does not name keep the data-driven start); with a start that reproduces
+    the simpler model exactly (``two-lobe-ggx`` with its blend at 0) the fit begins at the
+    simpler model's cost.
     """
 
     name: str

@@ -76,7 +76,7 @@ def _two_lobe_ggx(p, wi, wo):
     describes at Imageworks, for the measured materials whose peak and haze one lobe cannot both
     follow (Ngan et al. 2005). A convex blend of two energy-conserving lobes conserves energy, and
     ``m = 0`` (or ``m = 1``) is ``ggx`` exactly, so the fit starts from the ``ggx`` optimum
-    (``refines``) and can only improve on it. Two lobes each with its own Schlick ``F0`` would not
+    (``refines``) and descends from there. Two lobes each with its own Schlick ``F0`` would not
     contain ``ggx``: a lobe with ``F0 = 0`` still reflects ``(1 − cos θd)⁵`` at grazing angles."""
     fresnel = partial(schlick, p["f0"])
     sharp = microfacet_specular(GGX(p["alpha_1"]), fresnel, wi, wo)

@@ -26,20 +26,24 @@ def beckmann_lambda_exact(inv_a):
     ``exp`` the value already has, where differentiating ``erfc`` and ``1/u`` costs a fit's
     tangent pass more than the rest of the model.
     """
+    return _lambda_and_slope(inv_a)[0]
+
+
+def _lambda_and_slope(inv_a):
+    """``(Λ, dΛ/du)`` of :func:`beckmann_lambda_exact`, sharing ``e^{−a²}``; both 0 at the
+    normal (``u ≤ 1e-6``)."""
     ok = inv_a > 1e-6
     a = 1.0 / jnp.where(ok, inv_a, 1.0)
-    lam = 0.5 * (jnp.exp(-a * a) * inv_a * _INV_SQRT_PI - erfc(a))
-    return jnp.where(ok, lam, 0.0)
+    e = jnp.exp(-a * a)
+    lam = 0.5 * (e * inv_a * _INV_SQRT_PI - erfc(a))
+    return jnp.where(ok, lam, 0.0), jnp.where(ok, (0.5 * _INV_SQRT_PI) * e, 0.0)
 
 
 @beckmann_lambda_exact.defjvp
 def _beckmann_lambda_exact_jvp(primals, tangents):
     (inv_a,), (du,) = primals, tangents
-    ok = inv_a > 1e-6
-    a = 1.0 / jnp.where(ok, inv_a, 1.0)
-    e = jnp.exp(-a * a)
-    lam = jnp.where(ok, 0.5 * (e * inv_a * _INV_SQRT_PI - erfc(a)), 0.0)
-    return lam, jnp.where(ok, (0.5 * _INV_SQRT_PI) * e, 0.0) * du
+    lam, slope = _lambda_and_slope(inv_a)
+    return lam, slope * du
 
 
 def beckmann_lambda_rational(inv_a):
