@@ -106,6 +106,22 @@ def test_schlick_with_rgb_f0_and_its_weight():
     np.testing.assert_allclose(fresnel.schlick_weight(c), m[:, 0], rtol=1e-14)
 
 
+@pytest.mark.parametrize("f90", [0.0, 0.25, 1.0])
+def test_generalized_schlick_is_rtr_9_18(f90):
+    """``F0 + (F90 − F0)(1 − cos)^5``: ``F0`` at normal incidence, ``F90`` at grazing, within
+    ``[min, max](F0, F90)`` between, and RTR eq. 9.16 at ``F90 = 1``."""
+    f0 = np.array([0.9, 0.5, 0.02])
+    c = np.linspace(0.0, 1.0, 101)
+    got = np.asarray(fresnel.schlick(jnp.asarray(f0), jnp.asarray(c), f90=f90))
+    w = (1 - c)[:, None] ** 5
+    np.testing.assert_allclose(got, f0 + (f90 - f0) * w, rtol=1e-14, atol=1e-16)
+    np.testing.assert_allclose(got[-1], f0, rtol=1e-14)
+    np.testing.assert_allclose(got[0], f90, rtol=1e-14)
+    assert np.all(got >= np.minimum(f0, f90) - 1e-15) and np.all(got <= np.maximum(f0, f90) + 1e-15)
+    if f90 == 1.0:
+        np.testing.assert_array_equal(got, np.asarray(fresnel.schlick(jnp.asarray(f0), jnp.asarray(c))))
+
+
 def test_conversions_round_trip():
     eta = jnp.asarray([1.0, 1.33, 1.5, 2.4])
     f0 = fresnel.f0_from_ior(eta)

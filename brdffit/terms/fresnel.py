@@ -17,16 +17,23 @@ import jax.numpy as jnp
 from ._math import safe_div, safe_sqrt
 
 
-def schlick(f0, cos_d):
-    r"""Schlick's approximation, RTR eq. 9.16, as used by Burley 2012 §5.5.
+def schlick(f0, cos_d, f90=1.0):
+    r"""Schlick's approximation, RTR eq. 9.16, as used by Burley 2012 §5.5; with ``f90`` the
+    generalized form of RTR eq. 9.18 (exponent ``1/p = 5``).
 
-    .. math:: F(\mathbf h, \mathbf l) \approx F_0 + (1 - F_0)(1 - (\mathbf h\cdot\mathbf l)^+)^5
+    .. math:: F(\mathbf h, \mathbf l) \approx F_0 + (F_{90} - F_0)(1 - (\mathbf h\cdot\mathbf l)^+)^5
 
-    ``f0`` broadcasts against ``cos_d[..., None]`` (RGB ``f0`` of shape ``(3,)`` gives
+    ``F90 = 1`` (the default) is eq. 9.16: every material reflects everything at grazing
+    incidence. A free ``F90 < 1`` decouples the grazing reflectance from the normal one, the
+    second degree of freedom that the Cook–Torrance fits of measured materials get from a free
+    specular scale ``k_s`` and a free ``F0`` (``k_s F(F0)`` is this form with ``F90 = k_s``);
+    ``0 ≤ F0, F90 ≤ 1`` keeps ``0 ≤ F ≤ 1``.
+
+    ``f0`` and ``f90`` broadcast against ``cos_d[..., None]`` (RGB ``f0`` of shape ``(3,)`` gives
     ``(..., 3)``); a scalar ``f0`` with scalar output is obtained by passing ``f0[..., None]``.
     """
     m = jnp.clip(1.0 - cos_d, 0.0, 1.0)[..., None]
-    return f0 + (1.0 - f0) * m**5
+    return f0 + (f90 - f0) * m**5
 
 
 def schlick_weight(cos_d):
