@@ -76,8 +76,9 @@ def timed(call, repeat):
 
 
 def ggx_numpy(x, wi, wo):
-    """Plain NumPy transcription of the ``ggx`` model (RTR eqs. 9.34, 9.41, 9.42, 9.31, 9.16)."""
-    diffuse, f0, a = x[0:3], x[3:6], x[6]
+    """Plain NumPy transcription of the ``ggx`` model (RTR eqs. 9.34, 9.41, 9.42, 9.31, 9.18):
+    ``x`` is diffuse (3), f0 (3), alpha, f90 (``ggx``'s flat order)."""
+    diffuse, f0, a, f90 = x[0:3], x[3:6], x[6], x[7]
     h = wi + wo
     h /= np.linalg.norm(h, axis=1, keepdims=True)
     ci, co, ch = wi[:, 2], wo[:, 2], h[:, 2]
@@ -89,7 +90,7 @@ def ggx_numpy(x, wi, wo):
         return 0.5 * (np.sqrt(1 + a2 * t2) - 1)
 
     g2 = 1 / (1 + lam(ci) + lam(co))
-    fres = f0 + (1 - f0) * (1 - np.clip(np.sum(wi * h, axis=1), 0, 1))[:, None] ** 5
+    fres = f0 + (f90 - f0) * (1 - np.clip(np.sum(wi * h, axis=1), 0, 1))[:, None] ** 5
     return diffuse / np.pi + fres * (d * g2 / (4 * ci * co))[:, None]
 
 
@@ -103,8 +104,8 @@ def scipy_reference(samples, x0):
     def residual(x):
         return (np.log1p(ggx_numpy(x, wi, wo) * ci) - target).ravel()
 
-    lo = np.array([0.0] * 6 + [1e-3])
-    hi = np.ones(7)
+    lo = np.array([0.0] * 6 + [1e-3, 0.0])
+    hi = np.ones(8)
     t = time.perf_counter()
     sol = least_squares(residual, np.clip(x0, lo + 1e-9, hi), bounds=(lo, hi), x_scale="jac")
     return sol, time.perf_counter() - t

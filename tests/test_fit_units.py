@@ -156,9 +156,9 @@ def test_second_order_term_matches_finite_differences():
     """``Problem.block_second_order`` = Hessian of ½Σr² − JᵀJ, against central differences of
     the gradient (from the dense Jacobian) on a noisy table (large residuals)."""
     model = brdffit.get_model("ggx")
-    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2}
+    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2, "f90": 0.6}
     s = ggx_samples(400, x0, noise=0.3)
-    prob = _problem("ggx", tuple(range(7)), x0)
+    prob = _problem("ggx", tuple(range(8)), x0)
     sel = select(s, prob.loss)
     z = jnp.asarray(to_box(model.flatten(x0), np.asarray(prob.slo), np.asarray(prob.shi),
                            flat_log(model)))
@@ -167,7 +167,7 @@ def test_second_order_term_matches_finite_differences():
     jac = jax.jit(lambda p, v, d: jax.jacfwd(p.residual)(v, d))
     h = 1e-5
     hess = np.stack([(np.asarray(grad(prob, z.at[i].add(h), sel.data))
-                      - np.asarray(grad(prob, z.at[i].add(-h), sel.data))) / (2 * h) for i in range(7)])
+                      - np.asarray(grad(prob, z.at[i].add(-h), sel.data))) / (2 * h) for i in range(8)])
     J = np.asarray(jac(prob, z, sel.data))
     ref = 0.5 * (hess + hess.T) - J.T @ J
     assert np.max(np.abs(ref)) > 1e-3 * np.max(np.abs(J.T @ J))  # the term is not negligible here
@@ -358,7 +358,7 @@ def test_select_option_errors():
 def test_too_few_valid_cells_is_a_clear_error():
     s = ggx_samples(2000)
     s.valid[10:] = False
-    with pytest.raises(FitError, match=r"10 usable valid cells out of 2000.*needs at least 21"):
+    with pytest.raises(FitError, match=r"10 usable valid cells out of 2000.*needs at least 24"):
         brdffit.fit(s, "ggx")
     s = ggx_samples(2000)
     s.rgb[:] = np.nan
@@ -377,7 +377,7 @@ def test_option_errors_name_the_choices():
     with pytest.raises(ConfigError, match="lower bound must be > 0"):
         brdffit.fit(s, "ggx", bounds={"alpha": (0.0, 0.5)})
     with pytest.raises(FitError, match="nothing to fit"):
-        brdffit.fit(s, "ggx", fixed={"diffuse": 0.1, "f0": 0.1, "alpha": 0.1})
+        brdffit.fit(s, "ggx", fixed={"diffuse": 0.1, "f0": 0.1, "alpha": 0.1, "f90": 1.0})
     with pytest.raises(UnknownNameError, match="sandwich"):
         brdffit.fit(s, "ggx", covariance="hessian")
 

@@ -38,7 +38,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SIGMA = 0.01
 SUB = 600  # cells: one size everywhere, so the fit and the log-posterior compile once
 CUTOFF = 60.0  # g(ρ) ≥ 4.7 SIGMA inside it: no noisy cell goes negative (and gets dropped)
-GGX_TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.15}
+GGX_TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.15, "f90": 0.8}
 GTR_TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.15, "gamma": 1.5}
 
 
@@ -143,7 +143,7 @@ def test_gtr_shape_credible_intervals_cover_truth_and_match_least_squares(tmp_pa
     within 1e-4 of it (0.14999978 to 0.15008 over runs that differed only in rounding): the
     coverage is checked with the 99% interval."""
     table = noisy_table(tmp_path / "gtr.binary", "gtr", GTR_TRUTH, (20, 20, 40), seed=4)
-    fixed = {"diffuse": GTR_TRUTH["diffuse"], "f0": GTR_TRUTH["f0"]}
+    fixed = {"diffuse": GTR_TRUTH["diffuse"], "f0": GTR_TRUTH["f0"], "f90": 1.0}
     with warnings.catch_warnings():
         warnings.simplefilter("error", ChainTooShortWarning)
         post = sample_posterior(table, "gtr", fixed=fixed, cutoff=CUTOFF, subsample=300,
@@ -198,7 +198,7 @@ def test_same_seed_same_chain_other_seed_other_chain(ggx_table, ggx_fit):
     a, b, c = (short_run(ggx_table, ggx_fit, seed=s) for s in (5, 5, 6))
     np.testing.assert_array_equal(a.chain, b.chain)
     np.testing.assert_array_equal(a.log_prob, b.log_prob)
-    assert a.chain.shape == (60, 16, 7) and a.samples.shape == (50 * 16, 7)
+    assert a.chain.shape == (60, 16, 8) and a.samples.shape == (50 * 16, 8)
     assert not np.allclose(a.chain[-1], c.chain[-1])
     assert len(np.unique(a.chain[0], axis=0)) == 16  # a ball, not one point
 
@@ -216,7 +216,7 @@ def test_fixed_stay_fixed_and_noise_can_be_sampled(ggx_table):
     fit = brdffit.fit(ggx_table, "ggx", cutoff=CUTOFF, subsample=SUB, seed=5,
                       fixed={"f0": GGX_TRUTH["f0"]})
     post = short_run(ggx_table, fit, noise="sampled", nsteps=100, burn=50)
-    assert post.sampled == ["diffuse[0]", "diffuse[1]", "diffuse[2]", "alpha", "sigma"]
+    assert post.sampled == ["diffuse[0]", "diffuse[1]", "diffuse[2]", "alpha", "f90", "sigma"]
     assert post.fixed == ["f0[0]", "f0[1]", "f0[2]"] and post.params["f0"] == GGX_TRUTH["f0"]
     assert post.noise["mode"] == "sampled" and "sigma" in post.percentiles
     assert abs(post.noise["sigma"] / SIGMA - 1) < 0.15
@@ -231,7 +231,7 @@ def test_prior_and_option_errors_say_what_to_do(ggx_table, ggx_fit):
                   prior={"f0": (0, 1)})
     with pytest.raises(UnknownNameError, match="alpah"):
         short_run(ggx_table, ggx_fit, prior={"alpah": (0.1, 0.2)})
-    with pytest.raises(ConfigError, match="nwalkers must be even and at least 2 x 7"):
+    with pytest.raises(ConfigError, match="nwalkers must be even and at least 2 x 8"):
         short_run(ggx_table, ggx_fit, nwalkers=9)
     with pytest.raises(ConfigError, match="noise must be"):
         short_run(ggx_table, ggx_fit, noise="estimated")
@@ -266,7 +266,7 @@ def test_outputs_json_npz_corner(ggx_table, ggx_fit, tmp_path):
         assert list(z["names"]) == post.sampled and int(z["burn"]) == 10
     fig = post.corner_plot(tmp_path / "corner.png", truths=GGX_TRUTH)
     assert (tmp_path / "corner.png").stat().st_size > 20_000
-    assert len(fig.axes) == 49
+    assert len(fig.axes) == 64
     assert isinstance(post, PosteriorResult) and "alpha" in post.summary()
 
 
@@ -290,7 +290,7 @@ def test_cli_fit_mcmc_end_to_end(ggx_table, tmp_path, monkeypatch, capsys):
     for name, (p16, p50, p84) in post["percentiles"].items():
         assert p16 < p50 < p84
     with np.load(tmp_path / "r-chain.npz") as z:
-        assert z["chain"].shape == (60, 16, 7)
+        assert z["chain"].shape == (60, 16, 8)
     assert (tmp_path / "fig-corner.png").stat().st_size > 20_000
 
     from brdffit.cli import main

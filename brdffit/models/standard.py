@@ -1,4 +1,5 @@
-"""The standard registered models: one microfacet specular lobe (or two) plus Lambert.
+"""The standard registered models: one microfacet specular lobe (or two) plus Lambert, every
+lobe with the generalized Schlick Fresnel term (RTR eq. 9.18: RGB ``F0``, scalar ``F90``).
 
 Every entry is a short ``fn(params, wi, wo)`` built from the pieces in
 :mod:`brdffit.terms.ndf`, :mod:`brdffit.terms.masking`, :mod:`brdffit.terms.fresnel` and
@@ -28,15 +29,25 @@ F0 = Param(
     per_channel=True,
 )
 ALPHA = Param("alpha", (), *ALPHA_BOUNDS, 0.1, "microfacet roughness α", log=True)
+#: The grazing reflectance of the generalized Schlick term (RTR eq. 9.18). Measured materials
+#: rarely reflect everything at grazing angles: on the development corpus the fitted ``F90``
+#: of ``beckmann`` is at most 0.37 (69 materials) and ends on a bound on 34 of 80 (at 0 on the
+#: sharp dielectrics and metals looked at: no grazing rise at all). With ``F90 = 1`` forced, one lobe follows the grazing cells by being
+#: broad, 1.5–23× rougher than the published Cook–Torrance fits, whose free specular scale had
+#: this degree of freedom (``docs/design/fitting.md`` §7). The start, 1, is plain Schlick.
+F90 = Param(
+    "f90", (), 0.0, 1.0, 1.0, "specular reflectance at grazing incidence F90 (generalized Schlick)"
+)
 
 
 def _single_lobe(ndf_from_params):
-    """``fn(p, wi, wo)`` for Lambert + one Schlick microfacet lobe with the given NDF."""
+    """``fn(p, wi, wo)`` for Lambert + one microfacet lobe with the given NDF and the
+    generalized Schlick ``F`` (``F0`` RGB, ``F90`` scalar)."""
 
     def fn(p, wi, wo):
         ndf = ndf_from_params(p)
         return lambert(p["diffuse"], wi, wo) + microfacet_specular(
-            ndf, partial(schlick, p["f0"]), wi, wo
+            ndf, partial(schlick, p["f0"], f90=p["f90"]), wi, wo
         )
 
     return fn
@@ -45,10 +56,13 @@ def _single_lobe(ndf_from_params):
 GGX_MODEL = register(
     Model(
         name="ggx",
-        description="Lambert + GGX/Trowbridge-Reitz specular, height-correlated Smith G2, Schlick F",
-        params=(DIFFUSE, F0, ALPHA),
+        description=(
+            "Lambert + GGX/Trowbridge-Reitz specular, height-correlated Smith G2, "
+            "generalized Schlick F (F0, F90)"
+        ),
+        params=(DIFFUSE, F0, ALPHA, F90),
         fn=_single_lobe(lambda p: GGX(p["alpha"])),
-        reference="RTR eqs. 9.34, 9.41, 9.42, 9.31, 9.16, 9.61",
+        reference="RTR eqs. 9.34, 9.41, 9.42, 9.31, 9.18, 9.61",
     )
 )
 
@@ -61,24 +75,25 @@ GGX_ANISO_MODEL = register(
             F0,
             Param("alpha_x", (), *ALPHA_BOUNDS, 0.1, "roughness along the tangent x", log=True),
             Param("alpha_y", (), *ALPHA_BOUNDS, 0.1, "roughness along the bitangent y", log=True),
+            F90,
         ),
         fn=_single_lobe(lambda p: GGX(p["alpha_x"], p["alpha_y"])),
         isotropic=False,
-        reference="RTR eqs. 9.34, 9.53, 9.42 with 9.51",
+        reference="RTR eqs. 9.34, 9.53, 9.42 with 9.51, 9.18",
     )
 )
 
 
 def _two_lobe_ggx(p, wi, wo):
     """Two GGX lobes blended, ``f = ρ_d/π + (1 − m) f_s(α₁) + m f_s(α₂)``, each ``f_s`` the full
-    microfacet lobe of RTR eq. 9.34 (its own height-correlated ``G2``) with the same Schlick
-    ``F0``: the "mix of two GGX NDFs ... a second roughness value and a blend amount" that RTR §9.8.1
+    microfacet lobe of RTR eq. 9.34 (its own height-correlated ``G2``) with the same generalized
+    Schlick ``F`` (``F0``, ``F90``): the "mix of two GGX NDFs ... a second roughness value and a blend amount" that RTR §9.8.1
     describes at Imageworks, for the measured materials whose peak and haze one lobe cannot both
     follow (Ngan et al. 2005). A convex blend of two energy-conserving lobes conserves energy, and
     ``m = 0`` (or ``m = 1``) is ``ggx`` exactly, so the fit starts from the ``ggx`` optimum
     (``refines``) and descends from there. Two lobes each with its own Schlick ``F0`` would not
     contain ``ggx``: a lobe with ``F0 = 0`` still reflects ``(1 − cos θd)⁵`` at grazing angles."""
-    fresnel = partial(schlick, p["f0"])
+    fresnel = partial(schlick, p["f0"], f90=p["f90"])
     sharp = microfacet_specular(GGX(p["alpha_1"]), fresnel, wi, wo)
     broad = microfacet_specular(GGX(p["alpha_2"]), fresnel, wi, wo)
     m = p["mix"]
@@ -89,7 +104,7 @@ TWO_LOBE_GGX_MODEL = register(
     Model(
         name="two-lobe-ggx",
         description=(
-            "Lambert + a blend of a sharp and a broad GGX lobe with one Schlick F "
+            "Lambert + a blend of a sharp and a broad GGX lobe with one generalized Schlick F "
             "(RTR §9.8.1, Imageworks; Ngan et al. 2005)"
         ),
         params=(
@@ -98,6 +113,7 @@ TWO_LOBE_GGX_MODEL = register(
             Param("alpha_1", (), *ALPHA_BOUNDS, 0.05, "roughness of the sharp lobe", log=True),
             Param("alpha_2", (), *ALPHA_BOUNDS, 0.3, "roughness of the broad lobe", log=True),
             Param("mix", (), 0.0, 1.0, 0.2, "blend amount m: weight of the broad lobe"),
+            F90,
         ),
         fn=_two_lobe_ggx,
         reference="RTR §9.8.1 (Imageworks' mix of two GGX lobes), eq. 9.34 twice; Ngan et al. 2005",
@@ -109,10 +125,13 @@ TWO_LOBE_GGX_MODEL = register(
 BECKMANN_MODEL = register(
     Model(
         name="beckmann",
-        description="Lambert + Beckmann specular, exact erf Smith Λ, height-correlated G2, Schlick F",
-        params=(DIFFUSE, F0, ALPHA),
+        description=(
+            "Lambert + Beckmann specular, exact erf Smith Λ, height-correlated G2, "
+            "generalized Schlick F (F0, F90)"
+        ),
+        params=(DIFFUSE, F0, ALPHA, F90),
         fn=_single_lobe(lambda p: Beckmann(p["alpha"])),
-        reference="RTR eqs. 9.34, 9.35, 9.38, 9.31, 9.16, 9.61",
+        reference="RTR eqs. 9.34, 9.35, 9.38, 9.31, 9.18, 9.61",
     )
 )
 
@@ -124,9 +143,9 @@ GTR_MODEL = register(
     Model(
         name="gtr",
         description="Lambert + generalized Trowbridge-Reitz specular (free tail γ), numerical Smith Λ",
-        params=(DIFFUSE, F0, ALPHA, GAMMA),
+        params=(DIFFUSE, F0, ALPHA, GAMMA, F90),
         fn=_single_lobe(lambda p: GTR(p["alpha"], p["gamma"])),
-        reference="Burley 2012 App. B eq. 1; RTR eqs. 9.34, 9.46, 9.47, 9.23/9.24, 9.31",
+        reference="Burley 2012 App. B eq. 1; RTR eqs. 9.34, 9.46, 9.47, 9.23/9.24, 9.31, 9.18",
     )
 )
 
@@ -137,8 +156,8 @@ BLINN_PHONG_MODEL = register(
             "Lambert + Blinn-Phong specular; alpha is the Beckmann-equivalent roughness, "
             "exponent α_p = 2α⁻² − 2 (Walter 2007), Beckmann Smith Λ"
         ),
-        params=(DIFFUSE, F0, ALPHA),
+        params=(DIFFUSE, F0, ALPHA, F90),
         fn=_single_lobe(lambda p: BlinnPhong.from_beckmann_alpha(p["alpha"])),
-        reference="RTR eqs. 9.34, 9.40 (α_p = 2α_b⁻² − 2, p. 340), 9.38, 9.31, 9.16, 9.61",
+        reference="RTR eqs. 9.34, 9.40 (α_p = 2α_b⁻² − 2, p. 340), 9.38, 9.31, 9.18, 9.61",
     )
 )
