@@ -32,9 +32,10 @@ ALPHA = Param("alpha", (), *ALPHA_BOUNDS, 0.1, "microfacet roughness α", log=Tr
 #: The grazing reflectance of the generalized Schlick term (RTR eq. 9.18). Measured materials
 #: rarely reflect everything at grazing angles: on the development corpus the fitted ``F90``
 #: of ``beckmann`` is at most 0.37 (69 materials) and ends on a bound on 34 of 80 (at 0 on the
-#: sharp dielectrics and metals looked at: no grazing rise at all). With ``F90 = 1`` forced, one lobe follows the grazing cells by being
-#: broad, 1.5–23× rougher than the published Cook–Torrance fits, whose free specular scale had
-#: this degree of freedom (``docs/design/fitting.md`` §7). The start, 1, is plain Schlick.
+#: sharp dielectrics and metals looked at: no grazing rise at all). With ``F90 = 1`` forced, one
+#: lobe follows the grazing cells by being broad, 1.5–23× rougher than the published
+#: Cook–Torrance fits, whose free specular scale had this degree of freedom
+#: (``docs/design/fitting.md`` §7). The start, 1, is plain Schlick.
 F90 = Param(
     "f90", (), 0.0, 1.0, 1.0, "specular reflectance at grazing incidence F90 (generalized Schlick)"
 )
@@ -87,8 +88,8 @@ GGX_ANISO_MODEL = register(
 def _two_lobe_ggx(p, wi, wo):
     """Two GGX lobes blended, ``f = ρ_d/π + (1 − m) f_s(α₁) + m f_s(α₂)``, each ``f_s`` the full
     microfacet lobe of RTR eq. 9.34 (its own height-correlated ``G2``) with the same generalized
-    Schlick ``F`` (``F0``, ``F90``): the "mix of two GGX NDFs ... a second roughness value and a blend amount" that RTR §9.8.1
-    describes at Imageworks, for the measured materials whose peak and haze one lobe cannot both
+    Schlick ``F`` (``F0``, ``F90``): the "mix of two GGX NDFs ... a second roughness value and a
+    blend amount" that RTR §9.8.1 describes at Imageworks, for the measured materials whose peak and haze one lobe cannot both
     follow (Ngan et al. 2005). A convex blend of two energy-conserving lobes conserves energy, and
     ``m = 0`` (or ``m = 1``) is ``ggx`` exactly, so the fit starts from the ``ggx`` optimum
     (``refines``) and descends from there. Two lobes each with its own Schlick ``F0`` would not
