@@ -14,7 +14,7 @@ from brdffit.errors import ConfigError, FitError, UnknownNameError
 from brdffit.fitting import LOSSES, FitResult, Subsample, get_loss
 from brdffit.fitting.data import CHUNK_CELLS, block_order, select
 from brdffit.fitting.losses import RELATIVE_FLOOR, huber_residual
-from brdffit.fitting.normal_form import compress, gram, normal_form
+from brdffit.fitting.normal_form import compress, compress_newton, gram, normal_form
 from brdffit.fitting.problem import Problem
 from brdffit.fitting.parameters import flat_log
 from brdffit.fitting.solvers import box_step, optimality, predicted_decrease
@@ -226,6 +226,35 @@ def test_normal_form_reproduces_cost_gradient_and_gauss_newton_matrix():
     full = jnp.sum((J @ d + r) ** 2)
     small = jnp.sum((R @ d + rt[:-1]) ** 2) + rt[-1] ** 2
     np.testing.assert_allclose(small, full, rtol=1e-10)
+
+
+def test_newton_model_leaves_out_the_curvature_of_held_coordinates():
+    """``JᵀJ + S`` with strong negative curvature along a coordinate held on its bound (the
+    aluminium ``beckmann`` case: ``F90`` pressed on 0) is indefinite; the Newton model keeps
+    ``S`` on the free coordinates (``R̃ᵀR̃ = JᵀJ + S`` with the held rows and columns of ``S``
+    zero) instead of falling back to ``JᵀJ``; with the coordinate inside the box it falls back."""
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(40, 3))
+    jtj = a.T @ a
+    s = np.array([[-0.3, 0.1, 0.0], [0.1, -0.2, 0.4], [0.0, 0.4, -3.0 * jtj[2, 2]]])
+    jtr = np.array([0.5, -0.4, -2.0])  # coordinate 2 is pushed above its upper bound
+    sum_r2 = 100.0
+    assert np.linalg.eigvalsh(jtj + s)[0] < 0
+    kept = s.copy()
+    kept[2, :] = kept[:, 2] = 0.0
+    assert np.linalg.eigvalsh(jtj + kept)[0] > 0
+    held = jnp.array([0.3, 0.7, 1.0])
+    rt, rmat = compress_newton(sum_r2, jnp.asarray(jtj), jnp.asarray(s), jnp.asarray(jtr), held)
+    np.testing.assert_allclose(rmat.T @ rmat, jtj + kept, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(rmat.T @ rt[:-1], jtr, rtol=1e-10)
+    np.testing.assert_allclose(jnp.sum(rt**2), sum_r2, rtol=1e-12)
+    inside = jnp.array([0.3, 0.7, 0.9])  # not on the bound: S is indefinite, Gauss–Newton's model
+    _, rmat = compress_newton(sum_r2, jnp.asarray(jtj), jnp.asarray(s), jnp.asarray(jtr), inside)
+    np.testing.assert_allclose(rmat.T @ rmat, jtj, rtol=1e-10, atol=1e-12)
+    on_but_inward = jnp.array([0.3, 0.7, 1.0])  # on the bound, gradient pointing inside: free
+    _, rmat = compress_newton(sum_r2, jnp.asarray(jtj), jnp.asarray(s), -jnp.asarray(jtr),
+                              on_but_inward)
+    np.testing.assert_allclose(rmat.T @ rmat, jtj, rtol=1e-10, atol=1e-12)
 
 
 def test_normal_form_derivative_is_R():

@@ -99,12 +99,24 @@ def compress(sum_r2, jtj, jtr):
     return jnp.concatenate([head, tail[None]]), rmat
 
 
-def compress_newton(sum_r2, jtj, second, jtr):
+def compress_newton(sum_r2, jtj, second, jtr, u=None):
     r""":func:`compress` of ``JᵀJ + S`` (``S`` an estimate of the second-order term
     :math:`\sum_i r_i \nabla^2 r_i` that Gauss–Newton drops), so that the solver's quadratic
     model is Newton's; ``J̃ᵀr̃ = Jᵀr`` and ``‖r̃‖² = Σ r²`` still hold. Falls back to ``JᵀJ``
     where ``JᵀJ + S`` is not positive definite or its Newton decrement exceeds the cost (far
-    from the optimum), so the cost is always represented exactly."""
+    from the optimum), so the cost is always represented exactly.
+
+    With the box coordinates ``u``, the rows and columns of ``S`` of the coordinates *held* on
+    a bound (on it, the gradient ``Jᵀr`` pointing outward: the bounded step keeps them there,
+    :func:`brdffit.fitting.solvers.box_step`) are left out: the curvature that matters is the
+    one of the free coordinates. A parameter whose optimum lies beyond its bound can have
+    strong negative curvature along its own coordinate (``F90`` pressed on 0 by the grazing
+    cells: ``JᵀJ + S`` with an eigenvalue of −1.5e8 against ``JᵀJ``'s 3e4…2e8 on aluminium,
+    ``beckmann``), which would otherwise send every step back to Gauss–Newton's model and its
+    linear convergence, while the free block ``(JᵀJ + S)_ff`` is positive definite."""
+    if u is not None:
+        held = ((u <= 0.0) & (jtr > 0)) | ((u >= 1.0) & (jtr < 0))
+        second = jnp.where(held[:, None] | held[None, :], 0.0, second)
     h = jtj + second
     lam = jnp.linalg.eigvalsh(h)
     rt, rmat = compress(sum_r2, h, jtr)
@@ -135,7 +147,8 @@ def normal_form(sums: Callable, chunks: int = 1) -> Callable:
         active = rest[0] if rest else None
         sum_r2, jtj, jtr, meat, extra = gram(sums, u, data, chunks, active)
         if len(rest) > 1:  # a second-order term: Newton's quadratic model
-            rt, rmat = compress_newton(sum_r2 + 2.0 * floor, jtj, rest[1].astype(jtj.dtype), jtr)
+            rt, rmat = compress_newton(sum_r2 + 2.0 * floor, jtj, rest[1].astype(jtj.dtype), jtr,
+                                         u.astype(jtj.dtype))
         else:
             rt, rmat = compress(sum_r2 + 2.0 * floor, jtj, jtr)
         aux = {"jtj": jtj, "meat": meat, "sum_r2": sum_r2, "extra": extra, "m": extra[0]}
