@@ -228,11 +228,21 @@ def test_normal_form_reproduces_cost_gradient_and_gauss_newton_matrix():
     np.testing.assert_allclose(small, full, rtol=1e-10)
 
 
+def _modified_newton(jtj, h):
+    """NumPy reference: ``h`` with the eigenvalues of its non-positive eigenvectors replaced by
+    Gauss–Newton's curvature along them."""
+    lam, vec = np.linalg.eigh(h)
+    gn = np.einsum("ik,ij,jk->k", vec, jtj, vec)
+    lam = np.where(lam > 1e-13 * np.max(np.abs(lam)), lam, gn)
+    return (vec * lam) @ vec.T
+
+
 def test_newton_model_leaves_out_the_curvature_of_held_coordinates():
     """``JᵀJ + S`` with strong negative curvature along a coordinate held on its bound (the
     aluminium ``beckmann`` case: ``F90`` pressed on 0) is indefinite; the Newton model keeps
     ``S`` on the free coordinates (``R̃ᵀR̃ = JᵀJ + S`` with the held rows and columns of ``S``
-    zero) instead of falling back to ``JᵀJ``; with the coordinate inside the box it falls back."""
+    zero). With the coordinate inside the box, the eigenvector of negative curvature gets
+    Gauss–Newton's curvature instead; ``J̃ᵀr̃ = Jᵀr`` and ``‖r̃‖² = Σr²`` hold throughout."""
     rng = np.random.default_rng(3)
     a = rng.normal(size=(40, 3))
     jtj = a.T @ a
@@ -243,17 +253,21 @@ def test_newton_model_leaves_out_the_curvature_of_held_coordinates():
     kept = s.copy()
     kept[2, :] = kept[:, 2] = 0.0
     assert np.linalg.eigvalsh(jtj + kept)[0] > 0
+    args = (jnp.asarray(jtj), jnp.asarray(s))
     held = jnp.array([0.3, 0.7, 1.0])
-    rt, rmat = compress_newton(sum_r2, jnp.asarray(jtj), jnp.asarray(s), jnp.asarray(jtr), held)
+    rt, rmat = compress_newton(sum_r2, *args, jnp.asarray(jtr), held)
     np.testing.assert_allclose(rmat.T @ rmat, jtj + kept, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(rmat.T @ rt[:-1], jtr, rtol=1e-10)
     np.testing.assert_allclose(jnp.sum(rt**2), sum_r2, rtol=1e-12)
-    inside = jnp.array([0.3, 0.7, 0.9])  # not on the bound: S is indefinite, Gauss–Newton's model
-    _, rmat = compress_newton(sum_r2, jnp.asarray(jtj), jnp.asarray(s), jnp.asarray(jtr), inside)
-    np.testing.assert_allclose(rmat.T @ rmat, jtj, rtol=1e-10, atol=1e-12)
-    on_but_inward = jnp.array([0.3, 0.7, 1.0])  # on the bound, gradient pointing inside: free
-    _, rmat = compress_newton(sum_r2, jnp.asarray(jtj), jnp.asarray(s), -jnp.asarray(jtr),
-                              on_but_inward)
+    modified = _modified_newton(jtj, jtj + s)
+    assert np.linalg.eigvalsh(modified)[0] > 0
+    for z, g in ((jnp.array([0.3, 0.7, 0.9]), jtr),  # inside the box
+                 (jnp.array([0.3, 0.7, 1.0]), -jtr)):  # on the bound, gradient pointing inside
+        rt, rmat = compress_newton(sum_r2, *args, jnp.asarray(g), z)
+        np.testing.assert_allclose(rmat.T @ rmat, modified, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(rmat.T @ rt[:-1], g, rtol=1e-10)
+    # A Newton decrement above the cost (far from the optimum): Gauss–Newton's model.
+    _, rmat = compress_newton(1e-6, *args, jnp.asarray(jtr), jnp.array([0.3, 0.7, 0.9]))
     np.testing.assert_allclose(rmat.T @ rmat, jtj, rtol=1e-10, atol=1e-12)
 
 
