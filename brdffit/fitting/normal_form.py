@@ -45,6 +45,8 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
+from .transforms import held_on_bounds
+
 #: Eigenvalues of ``JᵀJ`` below this fraction of the largest are treated as zero.
 RANK_RTOL = 1e-13
 
@@ -99,14 +101,15 @@ def compress(sum_r2, jtj, jtr):
     return jnp.concatenate([head, tail[None]]), rmat
 
 
-def compress_newton(sum_r2, jtj, second, jtr, u=None):
+def compress_newton(sum_r2, jtj, second, jtr, u):
     r""":func:`compress` of a Newton model ``JᵀJ + S`` (``S`` an estimate of the second-order
     term :math:`\sum_i r_i \nabla^2 r_i` that Gauss–Newton drops), so that the solver's
     quadratic model is Newton's; ``J̃ᵀr̃ = Jᵀr`` and ``‖r̃‖² = Σ r²`` still hold.
 
     * With the box coordinates ``u``, the rows and columns of ``S`` of the coordinates *held*
       on a bound (on it, the gradient ``Jᵀr`` pointing outward: the bounded step keeps them
-      there, :func:`brdffit.fitting.solvers.box_step`) are left out: the curvature that
+      there, :func:`brdffit.fitting.transforms.held_on_bounds`, as in
+      :func:`brdffit.fitting.solvers.box_step`) are left out: the curvature that
       matters is the one of the free coordinates. A parameter whose optimum lies beyond its
       bound can have strong negative curvature along its own coordinate (``F90`` pressed on 0
       by the grazing cells: an eigenvalue of −1.5e8 against ``JᵀJ``'s 3e4…2e8 on aluminium,
@@ -120,9 +123,9 @@ def compress_newton(sum_r2, jtj, second, jtr, u=None):
     * Where the Newton decrement ``(Jᵀr)ᵀH⁻¹Jᵀr`` of that model exceeds ``Σ r²`` (far from the
       optimum, or a wrong ``S``) it falls back to ``JᵀJ``, so the cost is always represented
       exactly (``c ≥ 0``, :func:`compress`)."""
-    if u is not None:
-        held = ((u <= 0.0) & (jtr > 0)) | ((u >= 1.0) & (jtr < 0))
-        second = jnp.where(held[:, None] | held[None, :], 0.0, second)
+    held_lo, held_hi = held_on_bounds(u, jtr)
+    out = held_lo | held_hi
+    second = jnp.where(out[:, None] | out[None, :], 0.0, second)
     h = jtj + second
     lam, vec = jnp.linalg.eigh(h)
     # Along eigenvectors of non-positive curvature, Gauss–Newton's curvature vᵀJᵀJv (≥ 0).

@@ -46,6 +46,7 @@ import numpy as np
 import optimistix as optx
 
 from ..errors import UnknownNameError
+from .transforms import held_on_bounds
 
 SOLVERS = {
     "lm": optx.LevenbergMarquardt,
@@ -130,8 +131,7 @@ def box_step(jtj, g, z, damping):
         held_hi = jnp.where(leave, held_hi | out_hi, held_hi & ~back_hi)
         return held_lo, held_hi
 
-    start = ((z <= 0.0) & (g > 0), (z >= 1.0) & (g < 0))
-    held_lo, held_hi = jax.lax.fori_loop(0, p + 3, round_, start)
+    held_lo, held_hi = jax.lax.fori_loop(0, p + 3, round_, held_on_bounds(z, g))
     d = solve(held_lo, held_hi)
     d = jnp.where(jnp.isfinite(d), d, 0.0)
     return jnp.clip(d, lo, hi)

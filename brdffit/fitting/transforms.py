@@ -65,6 +65,12 @@ def to_box(x, slo, shi, log) -> np.ndarray:
     return np.clip((s - slo) / (shi - slo), 0.0, 1.0)
 
 
+def held_on_bounds(z, g):
+    """``(held_lo, held_hi)``: the box coordinates on their lower (upper) bound whose gradient
+    ``g`` of the cost points outward, so that a bounded step keeps them there (``jnp``)."""
+    return (z <= 0.0) & (g > 0), (z >= 1.0) & (g < 0)
+
+
 def at_bound(z) -> np.ndarray:
     """``-1`` (lower), ``+1`` (upper) or ``0`` (interior) for each box coordinate."""
     z = np.asarray(z, float)
