@@ -177,8 +177,9 @@ def test_registry_entry():
         "anisotropic", "sheen", "sheen_tint", "clearcoat", "clearcoat_gloss",
     )
     assert MODEL.size == 13 and MODEL.isotropic is False and MODEL.description
+    lower = {"roughness": 0.02, "base_color": dm.BASE_COLOR_MIN}  # see dm.tint_color
     for q in MODEL.params:
-        assert (q.lower, q.upper) == ((0.02, 1.0) if q.name == "roughness" else (0.0, 1.0)), q.name
+        assert (q.lower, q.upper) == (lower.get(q.name, 0.0), 1.0), q.name
     d = MODEL.defaults()  # Burley's defaults in BRDF Explorer's disney.brdf
     np.testing.assert_allclose(d["base_color"], [0.82, 0.67, 0.16])
     assert (d["specular"], d["roughness"], d["sheen_tint"], d["clearcoat_gloss"]) == (0.5, 0.5, 0.5, 1.0)

@@ -93,6 +93,22 @@ def test_a_vanishing_jacobian_column_stays_damped(cells):
     assert res.cost == pytest.approx(31639.035, rel=1e-6)
 
 
+@pytest.mark.skipif(not os.environ.get("BRDFFIT_SLOW"),
+                    reason="compiles for minutes on 2 CPU cores; set BRDFFIT_SLOW=1 to run it")
+def test_a_colored_specular_without_diffuse_is_attained_by_disney(cells):
+    """Dark-blue-paint wants a blue-tinted specular and (almost) no diffuse. Burley's tint
+    ``C/lum(C)`` keeps the hue of a vanishing base color and is white at exactly 0, so with a
+    lower bound of 0 that optimum is a limit never attained: the fit crawled along a ray of fixed
+    hue into the step limit (200 steps, ω = 0.07 on these cells). With the bound at
+    ``BASE_COLOR_MIN`` the fit converges, a channel of the base color exactly on it."""
+    from brdffit.models.disney import BASE_COLOR_MIN
+
+    res = brdffit.fit(cells["dark-blue-paint"], "disney", throw=False)
+    check_honest(res, "disney")
+    assert min(res.params["base_color"]) == BASE_COLOR_MIN
+    assert any(k.startswith("base_color") for k in res.at_bound)
+
+
 @pytest.mark.parametrize("name", realistic.names())
 @pytest.mark.parametrize("model_name", ["ggx", "beckmann"])
 def test_single_lobe_models_converge_on_every_embedded_material(cells, name, model_name):

@@ -39,6 +39,9 @@ from .starts import principled
 
 #: Luminance weights of the reference implementation's tint (an approximation of Rec. 709 Y).
 LUMINANCE = (0.3, 0.6, 0.1)
+#: The lower bound of ``base_color`` (each channel): an albedo no measurement resolves, above 0
+#: so that :func:`tint_color` is continuous on the whole box (see there).
+BASE_COLOR_MIN = 1e-6
 #: Clearcoat: fixed IOR 1.5 (polyurethane), so F0 = 0.04 (Burley 2012 §5.4).
 CLEARCOAT_F0 = 0.04
 #: Clearcoat's ad-hoc masking: GGX Smith G with a fixed α = 0.25 (Burley 2012 §5.6, Addenda).
@@ -63,6 +66,15 @@ def tint_color(base_color):
 
     Burley's *specularTint* and *sheenTint* blend towards this color (BRDF Explorer
     ``disney.brdf``: ``Cdlum > 0 ? Cdlin/Cdlum : vec3(1)``; the notes do not give it).
+
+    The tint keeps the hue of a base color however dark, and turns white only at exactly
+    black: it is discontinuous at 0. A material whose specular is colored but whose diffuse is
+    nil (a dark paint or wood, measured) is then a limit the model never attains, and a fit
+    crawls towards ``base_color → 0`` along a ray of fixed hue until its step limit (fruitwood-241
+    and dark-blue-paint from ``../shared/realistic``: 200 steps, not converged). So the fit's
+    lower bound of each channel is :data:`BASE_COLOR_MIN`, not 0: on that box the tint is
+    continuous, the infimum is attained (on the bound, where the data ask for it), and the
+    formula is still exactly the reference's, so a renderer reproduces the fitted BRDF.
     """
     w, base_color = LUMINANCE, _rgb(base_color)
     lum = w[0] * base_color[..., 0] + w[1] * base_color[..., 1] + w[2] * base_color[..., 2]
@@ -171,7 +183,8 @@ def _unit(name, default, description, camel):
 
 
 DISNEY_PARAMS = (
-    Param("base_color", (3,), 0.0, 1.0, (0.82, 0.67, 0.16), "surface color, linear RGB (baseColor)"),
+    Param("base_color", (3,), BASE_COLOR_MIN, 1.0, (0.82, 0.67, 0.16),
+          "surface color, linear RGB (baseColor)"),
     _unit("subsurface", 0.0, "blend from retro-reflective diffuse to the subsurface shape", "subsurface"),
     _unit("metallic", 0.0, "0 dielectric, 1 metal: no diffuse, specular tinted by base color", "metallic"),
     _unit("specular", 0.5, "incident specular amount, F0 = 0.08·specular", "specular"),
