@@ -56,6 +56,7 @@ from ..terms._math import chi_plus, cos_theta, dot, half_vector, safe_div
 from ..terms.fresnel import dielectric, schlick, schlick_weight
 from ..terms.masking import G2_separable
 from ..terms.ndf import GGX
+from .disney import BASE_COLOR_MIN
 from .registry import Model, Param, register
 from .starts import principled
 
@@ -85,7 +86,13 @@ def dist_alphas(roughness, anisotropic):
 
 
 def tint(base_color):
-    """``C / lum(C)`` where ``lum > 0``, else white (``principled_fresnel``, sheen tint)."""
+    """``C / lum(C)`` where ``lum > 0``, else white (``principled_fresnel``, sheen tint).
+
+    Discontinuous at black, as Burley's: the fit's lower bound of ``base_color`` is therefore
+    :data:`~brdffit.models.disney.BASE_COLOR_MIN` (the reason is in
+    :func:`brdffit.models.disney.tint_color`; black-oxidized-steel, full table: 200 steps along
+    ``base_color → 0`` at a fixed hue with a bound of 0).
+    """
     w = LUMINANCE
     lum = w[0] * base_color[..., 0] + w[1] * base_color[..., 1] + w[2] * base_color[..., 2]
     return safe_div(base_color, lum[..., None], fill=1.0)
@@ -159,7 +166,8 @@ def _unit(name, default, description):
 
 
 PRINCIPLED_PARAMS = (
-    Param("base_color", (3,), 0.0, 1.0, 0.5, "surface color, linear RGB (Mitsuba base_color)"),
+    Param("base_color", (3,), BASE_COLOR_MIN, 1.0, 0.5,
+          "surface color, linear RGB (Mitsuba base_color)"),
     Param("roughness", (), 0.032, 1.0, 0.5, "roughness; α = roughness² ≥ 0.001 (Mitsuba roughness)"),
     _unit("anisotropic", 0.0, "anisotropy, aspect = sqrt(1 − 0.9 anisotropic)"),
     _unit("metallic", 0.0, "0 dielectric, 1 metal (Schlick of base_color), no diffuse"),
