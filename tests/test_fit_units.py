@@ -330,6 +330,33 @@ def test_block_sums_match_dense_jacobian(model_name, free, x0, local):
     assert float(prob.full_vector(prob.physical(u))[4]) == prob.x_fixed[4]  # the fixed entry
 
 
+def test_tables_built_once_per_pass_give_the_same_jacobian():
+    """``gtr`` declares ``per_pass`` (its numerical-Λ table, built from ``α`` and ``γ`` only):
+    the fitter builds the table and its tangents once per pass and the blocks use them. The
+    model split is exact (``apply(p, build(p)) == fn(p)``), and the sums equal the dense
+    Jacobian of the model as one function, the table's tangents included (``γ`` reaches the
+    residual only through ``D`` and the table)."""
+    model = brdffit.get_model("gtr")
+    split = model.per_pass
+    assert set(split.uses) == {"alpha", "gamma"}
+    s = ggx_samples(300)
+    p = {k: jnp.asarray(v) for k, v in model.complete({"alpha": 0.3, "gamma": 1.4}).items()}
+    wi, wo = jnp.asarray(s.wi), jnp.asarray(s.wo)
+    np.testing.assert_array_equal(np.asarray(split.apply(p, split.build(p), wi, wo)),
+                                  np.asarray(model.fn(p, wi, wo)))
+    free = (0, 1, 2, 3, 5, 6, 7, 8)  # f0[1] fixed
+    prob = _problem("gtr", free, {"diffuse": [0.3, 0.2, 0.1], "f0": [0.1, 0.2, 0.3], "alpha": 0.2,
+                                  "gamma": 1.5, "f90": 0.7})
+    sel = select(ggx_samples(400), get_loss("log"))
+    u = jnp.asarray(RNG.uniform(0.1, 0.9, size=len(free)))
+    got = jax.jit(lambda q, v, d: q.block_sums(v, d, q.pass_tables(v)))(prob, u, sel.data)
+    want = _dense_reference(prob, u, sel.data)
+    for g, w in zip(got[:4], want):
+        np.testing.assert_allclose(g, w, rtol=1e-10, atol=1e-12 * np.max(np.abs(w)))
+    assert brdffit.get_model("ggx").per_pass is None
+    assert jax.jit(lambda q, v: q.pass_tables(v))(_problem("ggx", (6,), {}), u[:1]) is None
+
+
 # -- data selection ---------------------------------------------------------------------------
 def test_select_masks_cutoff_and_subsample():
     s = ggx_samples(4000)

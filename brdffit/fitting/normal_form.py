@@ -56,7 +56,7 @@ def chunked(data, chunks: int):
     return jax.tree.map(lambda a: a.reshape((chunks, a.shape[0] // chunks) + a.shape[1:]), data)
 
 
-def gram(sums: Callable, u, data, chunks: int = 1, active=None):
+def gram(sums: Callable, u, data, chunks: int = 1, active=None, prepare: Callable | None = None):
     """``(Σ r², JᵀJ, Jᵀr, Jᵀdiag(r²)J, extra)`` summed over the blocks of cells.
 
     ``sums(u, data_block)`` returns the five for one block (``extra``: a vector of further sums
@@ -65,16 +65,21 @@ def gram(sums: Callable, u, data, chunks: int = 1, active=None):
     per-block derivatives stay in cache and the whole Jacobian is never in memory. ``active`` (a
     traced integer, default all) sums over the first ``active`` blocks only: the same compiled
     program then serves a fit on a leading subset of the blocks (the warm start of
-    :mod:`brdffit.fitting.stages`).
+    :mod:`brdffit.fitting.stages`). ``prepare(u)`` (optional) computes, once before the loop,
+    what every block shares (:meth:`Problem.pass_tables
+    <brdffit.fitting.problem.Problem.pass_tables>`); it is passed to ``sums(u, data_block,
+    prepared)``.
     """
     acc = jnp.promote_types(u.dtype, jnp.float32)
     p = u.shape[0]
-    extra = jax.eval_shape(sums, u, jax.tree.map(lambda a: a[: a.shape[0] // chunks], data))[4]
+    prepared = None if prepare is None else prepare(u)
+    block_sums = lambda v, d: sums(v, d) if prepare is None else sums(v, d, prepared)
+    extra = jax.eval_shape(block_sums, u, jax.tree.map(lambda a: a[: a.shape[0] // chunks], data))[4]
     init = (jnp.zeros((), acc), jnp.zeros((p, p), acc), jnp.zeros((p,), acc),
             jnp.zeros((p, p), acc), jnp.zeros(extra.shape, acc))
 
     def block(carry, chunk):
-        return tuple(c + s.astype(acc) for c, s in zip(carry, sums(u, chunk)))
+        return tuple(c + s.astype(acc) for c, s in zip(carry, block_sums(u, chunk)))
 
     return over_blocks(block, init, data, chunks, active)
 
@@ -138,11 +143,12 @@ def compress_newton(sum_r2, jtj, second, jtr, u):
     return jnp.where(ok, rt, rt_gn), jnp.where(ok, rmat, rmat_gn)
 
 
-def normal_form(sums: Callable, chunks: int = 1) -> Callable:
+def normal_form(sums: Callable, chunks: int = 1, prepare: Callable | None = None) -> Callable:
     """``fn(u, args) -> r̃`` for optimistix, whose derivative is the Gauss–Newton ``J̃``.
 
     ``sums(u, data)`` returns ``(Σ r², JᵀJ, Jᵀr, Jᵀdiag(r²)J, m)`` for a block of cells
-    (``data`` is split into ``chunks`` blocks, see :func:`gram`). ``args = (data, floor)``
+    (``data`` is split into ``chunks`` blocks, see :func:`gram`, which also says what
+    ``prepare`` does). ``args = (data, floor)``
     or ``(data, floor, active)``: ``floor`` is a constant added to the cost ``½‖r̃‖²`` (through
     ``c``), see :meth:`brdffit.fitting.problem.Problem.cost_floor`; it changes no step, gradient
     or ratio. ``active`` restricts the sums to the first blocks (:func:`gram`).
@@ -158,7 +164,7 @@ def normal_form(sums: Callable, chunks: int = 1) -> Callable:
     def _both(u, args):
         data, floor, *rest = args
         active = rest[0] if rest else None
-        sum_r2, jtj, jtr, meat, extra = gram(sums, u, data, chunks, active)
+        sum_r2, jtj, jtr, meat, extra = gram(sums, u, data, chunks, active, prepare)
         if len(rest) > 1:  # a second-order term: Newton's quadratic model
             rt, rmat = compress_newton(sum_r2 + 2.0 * floor, jtj, rest[1].astype(jtj.dtype), jtr,
                                          u.astype(jtj.dtype))

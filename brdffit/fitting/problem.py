@@ -143,7 +143,36 @@ class Problem(eqx.Module):
                 layout.append((p.name, comps, p.per_channel))
         return tuple(layout)
 
-    def tangents_x(self, x_free, data: FitData):
+    def _tangent_directions(self, shapes):
+        """``(name, on, t)`` per tangent field (see :meth:`tangents_x`): the parameter, the
+        flat components the tangent is one on, and the tangent itself (NumPy, ``shapes[name]``)."""
+        for name, comps, local in self.tangent_layout():
+            shape = shapes[name]
+            for on in [comps] if local else [(c,) for c in comps]:
+                t = np.zeros(int(np.prod(shape, dtype=int)))
+                t[list(on)] = 1.0
+                yield name, on, local, t.reshape(shape)
+
+    def pass_tables(self, u):
+        """``(tables, tangents)`` of a model with ``per_pass`` (:class:`~brdffit.models.registry.PerPass`)
+        at ``u``, or ``None``: the parameter-only tables and, per tangent field of
+        :meth:`tangents_x` whose parameter they use, their ``jvp``. Computed once per pass, before
+        the loop over blocks (:func:`~brdffit.fitting.normal_form.gram`)."""
+        split = self.model.per_pass
+        if split is None:
+            return None
+        dt = jnp.dtype(self.compute_dtype)
+        params = self.model.unflatten(self.full_vector(self.physical(u)).astype(dt))
+        tangents = []
+        for name, _on, _local, t in self._tangent_directions({k: v.shape for k, v in params.items()}):
+            if name not in split.uses:
+                tangents.append(None)
+                continue
+            f = lambda v, name=name: split.build({**params, name: v})
+            tangents.append(jax.jvp(f, (params[name],), (jnp.asarray(t, dt),))[1])
+        return split.build(params), tuple(tangents)
+
+    def tangents_x(self, x_free, data: FitData, tables=None):
         r"""``(pred, r, fields, where)``: the model ``(n, 3)``, the residual ``(n, 3)`` and the
         forward-mode tangents the Jacobian is made of.
 
@@ -159,28 +188,37 @@ class Problem(eqx.Module):
         ``T_k`` is exactly ``∂r_{·c}/∂x_c``. Any other parameter takes one ``jvp`` per free
         component: 3 products instead of 7 for ``ggx``. XLA's common-subexpression elimination
         shares the primal between them.
+
+        ``tables`` (from :meth:`pass_tables`, for a model with ``per_pass``): the model is
+        ``per_pass.apply`` with those tables, whose tangent enters the fields of the
+        parameters they use.
         """
         dt = jnp.dtype(self.compute_dtype)
         params = self.model.unflatten(self.full_vector(x_free).astype(dt))
-        pred = self.model.fn(params, data.wi.astype(dt), data.wo.astype(dt))
+        wi, wo = data.wi.astype(dt), data.wo.astype(dt)
+        if tables is None:
+            model = lambda p, _tab: self.model.fn(p, wi, wo)
+            tab, dtabs = None, None
+        else:
+            model = lambda p, tab: self.model.per_pass.apply(p, tab, wi, wo)
+            tab, dtabs = tables
+        pred = model(params, tab)
         r = self._residual_of_pred(pred, data).reshape(-1, 3)
         fields, where = [], []
-        for name, comps, local in self.tangent_layout():
-            shape = params[name].shape
-
-            def f(v, name=name):
-                return self._residual_of_params({**params, name: v}, data).reshape(-1, 3)
-
-            tangents = [comps] if local else [(c,) for c in comps]
-            for on in tangents:
-                t = np.zeros(int(np.prod(shape, dtype=int)))
-                t[list(on)] = 1.0
-                fields.append(jax.jvp(f, (params[name],), (jnp.asarray(t.reshape(shape), dt),))[1])
-                k = len(fields) - 1
-                where += [(k, c) for c in on] if (local and shape) else [(k, None)]
+        directions = self._tangent_directions({k: v.shape for k, v in params.items()})
+        for i, (name, on, local, t) in enumerate(directions):
+            t = jnp.asarray(t, dt)
+            res = lambda v, tb, name=name: self._residual_of_pred(model({**params, name: v}, tb), data)
+            if dtabs is not None and dtabs[i] is not None:
+                field = jax.jvp(res, (params[name], tab), (t, dtabs[i]))[1]
+            else:
+                field = jax.jvp(lambda v, res=res: res(v, tab), (params[name],), (t,))[1]
+            fields.append(field.reshape(-1, 3))
+            k = len(fields) - 1
+            where += [(k, c) for c in on] if (local and params[name].shape) else [(k, None)]
         return pred, r, fields, tuple(where)
 
-    def block_sums(self, u, data: FitData):
+    def block_sums(self, u, data: FitData, tables=None):
         """``(Σ r², JᵀJ, Jᵀr, Jᵀdiag(r²)J, extra)`` of one block of cells, ``J = ∂r/∂u``;
         ``extra`` holds the error-figure sums (:func:`~brdffit.fitting.statistics.cell_metric_sums`,
         the number of weighted residuals first).
@@ -192,7 +230,7 @@ class Problem(eqx.Module):
         accumulated in float64 when x64 is enabled, whatever the compute dtype.
         """
         x, dxdu = jax.jvp(self.physical, (u,), (jnp.ones_like(u),))  # the map is elementwise
-        pred, r, fields, where = self.tangents_x(x, data)
+        pred, r, fields, where = self.tangents_x(x, data, tables)
         acc = jnp.promote_types(u.dtype, jnp.float32)
         r = r.astype(acc)
         fields = [t.astype(acc) for t in fields]

@@ -78,6 +78,23 @@ class Param:
 
 
 @dataclasses.dataclass(frozen=True)
+class PerPass:
+    """A model split for the fitter's passes over the cells, which are made block by block.
+
+    ``build(params) -> tables`` computes what depends on the parameters alone (a numerical Λ
+    table: many times the cost of evaluating one block of cells), ``apply(params, tables, wi,
+    wo) -> f_r`` evaluates the model with them, so that ``fn(p, wi, wo) == apply(p, build(p),
+    wi, wo)``. The fitter builds the tables, and their derivatives with respect to the
+    parameters named in ``uses`` (the only ones they depend on), once per pass instead of once
+    per block; a derivative with respect to any other parameter skips them.
+    """
+
+    build: Callable
+    apply: Callable
+    uses: tuple[str, ...]
+
+
+@dataclasses.dataclass(frozen=True)
 class Model:
     """A named BRDF model: ``fn(params, wi, wo)`` with declared parameters.
 
@@ -101,6 +118,9 @@ class Model:
     parameter's bounds and keeps the declared default for a parameter the hook does not name.
     Without a hook the features go to parameters by name (``diffuse``, ``f0``, ``alpha``...);
     :mod:`brdffit.models.starts` has the hooks of the built-in models.
+
+    ``per_pass`` (optional, a :class:`PerPass`) lets the fitter build parameter-only tables
+    once per pass over the cells instead of once per block (``gtr``'s numerical Λ).
 
     ``refines`` (optional) names a simpler registered model that this one contains, with the
     map from that model's fitted parameters to starts of this one: ``(name, fn)``,
@@ -126,6 +146,7 @@ class Model:
     refines: tuple[str, Callable[[Mapping], list[Mapping]]] | None = dataclasses.field(
         default=None, repr=False, compare=False
     )
+    per_pass: PerPass | None = dataclasses.field(default=None, repr=False, compare=False)
 
     # -- parameter bookkeeping ---------------------------------------------------------------
     @property

@@ -14,7 +14,7 @@ from ..terms.diffuse import lambert
 from ..terms.fresnel import schlick
 from ..terms.microfacet import microfacet_specular
 from ..terms.ndf import GGX, GTR, Beckmann, BlinnPhong
-from .registry import Model, Param, register
+from .registry import Model, Param, PerPass, register
 from .starts import two_lobes_from_one
 
 #: Bounds shared by the single-lobe models. Roughness ``alpha`` spans decades (polished metals
@@ -46,12 +46,23 @@ def _single_lobe(ndf_from_params):
     generalized Schlick ``F`` (``F0`` RGB, ``F90`` scalar)."""
 
     def fn(p, wi, wo):
-        ndf = ndf_from_params(p)
-        return lambert(p["diffuse"], wi, wo) + microfacet_specular(
-            ndf, partial(schlick, p["f0"], f90=p["f90"]), wi, wo
-        )
+        return _lobe_with(ndf_from_params(p), p, wi, wo)
 
     return fn
+
+
+def _lobe_with(ndf, p, wi, wo):
+    return lambert(p["diffuse"], wi, wo) + microfacet_specular(
+        ndf, partial(schlick, p["f0"], f90=p["f90"]), wi, wo
+    )
+
+
+def _gtr_table(p):
+    return GTR(p["alpha"], p["gamma"]).lambda_table()
+
+
+def _gtr_with_table(p, table, wi, wo):
+    return _lobe_with(GTR(p["alpha"], p["gamma"], table=table), p, wi, wo)
 
 
 GGX_MODEL = register(
@@ -147,6 +158,7 @@ GTR_MODEL = register(
         params=(DIFFUSE, F0, ALPHA, GAMMA, F90),
         fn=_single_lobe(lambda p: GTR(p["alpha"], p["gamma"])),
         reference="Burley 2012 App. B eq. 1; RTR eqs. 9.34, 9.46, 9.47, 9.23/9.24, 9.31, 9.18",
+        per_pass=PerPass(build=_gtr_table, apply=_gtr_with_table, uses=("alpha", "gamma")),
     )
 )
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from .base import NDF, clamp_alpha
 from .ggx import GGX
-from .numerical import N_QUAD_TABLE, N_THETA, numerical_lambda
+from .numerical import N_QUAD_TABLE, N_THETA, ProjectedAreaTable, numerical_lambda
 
 #: ``γ`` is clamped to at least this (``γ → 0`` is the uniform NDF ``1/π``).
 GAMMA_MIN = 1e-3
@@ -84,20 +84,29 @@ class GTR(NDF):
     ``alpha`` and ``gamma`` are scalars (batch over parameter sets with ``jax.vmap``): each
     ``Lambda`` call builds one θ table from them (``n_theta`` nodes, ``4 · n_quad`` quadrature
     nodes each; about 1.3 ms on one loaded CPU core in float64) and interpolates it for every
-    direction.
+    direction. ``table`` (from :meth:`lambda_table` of the same ``α, γ``) skips that build: the
+    fitter builds it once per pass over the table instead of once per block of cells
+    (``Model.per_pass``).
     """
 
     alpha: jax.Array
     gamma: jax.Array
+    table: ProjectedAreaTable | None
     closed_form_lambda: bool = eqx.field(static=True)
     n_theta: int = eqx.field(static=True)
     n_quad: int = eqx.field(static=True)
 
-    def __init__(self, alpha, gamma, *, n_theta=N_THETA, n_quad=N_QUAD_TABLE):
+    def __init__(self, alpha, gamma, *, table=None, n_theta=N_THETA, n_quad=N_QUAD_TABLE):
         self.alpha = clamp_alpha(alpha)
         self.gamma = jnp.maximum(jnp.asarray(gamma), GAMMA_MIN)
+        self.table = table
         self.closed_form_lambda = _is_concrete_two(gamma)
         self.n_theta, self.n_quad = int(n_theta), int(n_quad)
+
+    def lambda_table(self) -> ProjectedAreaTable:
+        """The θ table of the numerical Λ (:class:`ProjectedAreaTable`) of this ``α, γ``."""
+        return ProjectedAreaTable.build(self.D, self.alpha, n_theta=self.n_theta,
+                                        n_quad=self.n_quad, dtype=jnp.result_type(self.alpha))
 
     def D(self, wm):  # noqa: N802
         mz = wm[..., 2]
@@ -109,4 +118,6 @@ class GTR(NDF):
     def Lambda(self, w):  # noqa: N802
         if self.closed_form_lambda:
             return GGX(self.alpha).Lambda(w)
+        if self.table is not None:
+            return self.table.Lambda(w)
         return numerical_lambda(self.D, w, self.alpha, n_theta=self.n_theta, n_quad=self.n_quad)
