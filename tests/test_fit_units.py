@@ -216,6 +216,10 @@ def test_normal_form_reproduces_cost_gradient_and_gauss_newton_matrix():
     s4, jtj4, _jtr4, _, _ = jax.jit(lambda v, d: gram(dense_sums(_toy_columns), v, d, chunks=4))(u, data)
     np.testing.assert_allclose([s4], [s], rtol=1e-12)
     np.testing.assert_allclose(jtj4, jtj, rtol=1e-12)
+    # the length of the extra sums given instead of found by tracing: the same sums
+    known = jax.jit(lambda v, d: gram(dense_sums(_toy_columns), v, d, chunks=4, n_extra=1))(u, data)
+    np.testing.assert_array_equal(known[1], jtj4)
+    assert list(known[4]) == [64]
     rt, R = compress(s, jtj, jtr)
     assert np.all(np.isfinite(rt)) and np.all(np.isfinite(R))
     np.testing.assert_allclose(jnp.sum(rt**2), jnp.sum(r**2), rtol=1e-12)

@@ -56,7 +56,8 @@ def chunked(data, chunks: int):
     return jax.tree.map(lambda a: a.reshape((chunks, a.shape[0] // chunks) + a.shape[1:]), data)
 
 
-def gram(sums: Callable, u, data, chunks: int = 1, active=None, prepare: Callable | None = None):
+def gram(sums: Callable, u, data, chunks: int = 1, active=None, prepare: Callable | None = None,
+         n_extra: int | None = None):
     """``(Σ r², JᵀJ, Jᵀr, Jᵀdiag(r²)J, extra)`` summed over the blocks of cells.
 
     ``sums(u, data_block)`` returns the five for one block (``extra``: a vector of further sums
@@ -68,15 +69,18 @@ def gram(sums: Callable, u, data, chunks: int = 1, active=None, prepare: Callabl
     :mod:`brdffit.fitting.stages`). ``prepare(u)`` (optional) computes, once before the loop,
     what every block shares (:meth:`Problem.pass_tables
     <brdffit.fitting.problem.Problem.pass_tables>`); it is passed to ``sums(u, data_block,
-    prepared)``.
+    prepared)``. ``n_extra``: the length of ``extra`` if known (else ``sums`` is traced once
+    more to find it: a quarter of a cold ``ggx`` solve's tracing).
     """
     acc = jnp.promote_types(u.dtype, jnp.float32)
     p = u.shape[0]
     prepared = None if prepare is None else prepare(u)
     block_sums = lambda v, d: sums(v, d) if prepare is None else sums(v, d, prepared)
-    extra = jax.eval_shape(block_sums, u, jax.tree.map(lambda a: a[: a.shape[0] // chunks], data))[4]
+    if n_extra is None:
+        first = jax.tree.map(lambda a: a[: a.shape[0] // chunks], data)
+        n_extra = jax.eval_shape(block_sums, u, first)[4].shape[0]
     init = (jnp.zeros((), acc), jnp.zeros((p, p), acc), jnp.zeros((p,), acc),
-            jnp.zeros((p, p), acc), jnp.zeros(extra.shape, acc))
+            jnp.zeros((p, p), acc), jnp.zeros((n_extra,), acc))
 
     def block(carry, chunk):
         return tuple(c + s.astype(acc) for c, s in zip(carry, block_sums(u, chunk)))
@@ -143,12 +147,13 @@ def compress_newton(sum_r2, jtj, second, jtr, u):
     return jnp.where(ok, rt, rt_gn), jnp.where(ok, rmat, rmat_gn)
 
 
-def normal_form(sums: Callable, chunks: int = 1, prepare: Callable | None = None) -> Callable:
+def normal_form(sums: Callable, chunks: int = 1, prepare: Callable | None = None,
+                n_extra: int | None = None) -> Callable:
     """``fn(u, args) -> r̃`` for optimistix, whose derivative is the Gauss–Newton ``J̃``.
 
     ``sums(u, data)`` returns ``(Σ r², JᵀJ, Jᵀr, Jᵀdiag(r²)J, m)`` for a block of cells
     (``data`` is split into ``chunks`` blocks, see :func:`gram`, which also says what
-    ``prepare`` does). ``args = (data, floor)``
+    ``prepare`` and ``n_extra`` do). ``args = (data, floor)``
     or ``(data, floor, active)``: ``floor`` is a constant added to the cost ``½‖r̃‖²`` (through
     ``c``), see :meth:`brdffit.fitting.problem.Problem.cost_floor`; it changes no step, gradient
     or ratio. ``active`` restricts the sums to the first blocks (:func:`gram`).
@@ -164,7 +169,7 @@ def normal_form(sums: Callable, chunks: int = 1, prepare: Callable | None = None
     def _both(u, args):
         data, floor, *rest = args
         active = rest[0] if rest else None
-        sum_r2, jtj, jtr, meat, extra = gram(sums, u, data, chunks, active, prepare)
+        sum_r2, jtj, jtr, meat, extra = gram(sums, u, data, chunks, active, prepare, n_extra)
         if len(rest) > 1:  # a second-order term: Newton's quadratic model
             rt, rmat = compress_newton(sum_r2 + 2.0 * floor, jtj, rest[1].astype(jtj.dtype), jtr,
                                          u.astype(jtj.dtype))

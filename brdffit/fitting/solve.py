@@ -22,7 +22,7 @@ from .data import FitData
 from .normal_form import normal_form
 from .problem import Problem
 from .solvers import COST_NOISE, end_optimality
-from .statistics import metrics_from
+from .statistics import N_CELL_SUMS, metrics_from
 
 #: XLA CPU option for the fitting program: keep YNNPACK for matrix products only (its default
 #: also routes the reductions of the 3-wide dot products of direction batches through slow
@@ -104,7 +104,7 @@ class Solved(eqx.Module):
 def _solve(problem: Problem, solver, z0, data, floor, max_steps: int, active, second) -> Solved:
     """The traced solve behind :func:`solve`; ``second`` (``p × p``, zeros for none) is the
     estimate of the second-order term added to the solver's ``JᵀJ``."""
-    fn = normal_form(problem.block_sums, problem.chunks, problem.pass_tables)
+    fn = normal_form(problem.block_sums, problem.chunks, problem.pass_tables, N_CELL_SUMS)
     sol = optx.least_squares(
         fn, solver, z0, args=(data, floor, active, second), max_steps=max_steps, throw=False,
         has_aux=True,

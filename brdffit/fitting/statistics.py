@@ -32,6 +32,10 @@ from .data import FitData
 from .losses import RELATIVE_FLOOR
 
 
+#: The length of :func:`cell_metric_sums`.
+N_CELL_SUMS = 4
+
+
 def cell_metric_sums(pred, data: FitData):
     """Sums over one block of cells behind :func:`metrics_from`: ``m`` (residuals with non-zero
     weight), ``Σ (Δρ cosθi cosθo)²``, ``Σ (Δ log(1 + ρ cosθi))²``, ``Σ |Δρ|/max(ρ, 10⁻³)``.
