@@ -28,6 +28,10 @@ def test_every_registered_model_has_a_preset(name):
     for pname in model.names:  # every parameter is listed to edit (start value and bounds)
         assert len(re.findall(rf"^(# )?{re.escape(pname)} = ", text, re.M)) >= 2 - (
             pname in opts.fixed), f"{path.name} does not list {pname}"
+    listed = text.split("[bounds]", 1)[1] if "[bounds]" in text else ""
+    for pname, lo, hi in re.findall(r"^# (\w+) = \[([^,\]]+), ([^\]]+)\]", listed, re.M):
+        p = model.param(pname)  # the commented bounds are the declared ones
+        assert (float(lo), float(hi)) == (p.lower, p.upper), f"{path.name}: {pname}"
 
 
 @pytest.mark.parametrize("path", PRESETS, ids=[p.stem for p in PRESETS])
