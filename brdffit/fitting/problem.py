@@ -100,10 +100,6 @@ class Problem(eqx.Module):
         acc = jnp.promote_types(data.target.dtype, jnp.float32)
         return 0.5 * jnp.sum(jnp.square(10.0 * eps * w.astype(acc))) / noise
 
-    def _residual_of_params(self, params, data: FitData):
-        dt = jnp.dtype(self.compute_dtype)
-        return self._residual_of_pred(self.model.fn(params, data.wi.astype(dt), data.wo.astype(dt)), data)
-
     def _residual_of_pred(self, pred, data: FitData):
         dt = pred.dtype
         ci, co = data.wi[:, 2:3].astype(dt), data.wo[:, 2:3].astype(dt)
@@ -144,8 +140,9 @@ class Problem(eqx.Module):
         return tuple(layout)
 
     def _tangent_directions(self, shapes):
-        """``(name, on, t)`` per tangent field (see :meth:`tangents_x`): the parameter, the
-        flat components the tangent is one on, and the tangent itself (NumPy, ``shapes[name]``)."""
+        """``(name, on, local, t)`` per tangent field (see :meth:`tangents_x`): the parameter,
+        the flat components the tangent is one on, whether the parameter is channel-local, and
+        the tangent itself (NumPy, of shape ``shapes[name]``)."""
         for name, comps, local in self.tangent_layout():
             shape = shapes[name]
             for on in [comps] if local else [(c,) for c in comps]:
