@@ -26,6 +26,7 @@ import dataclasses
 import threading
 
 import equinox as eqx
+import jax
 import numpy as np
 
 from .data import FitData
@@ -97,11 +98,18 @@ class Run:
         on a background thread, so that its compilation overlaps the solve's and the first
         stage (a cold ``ggx`` process: 2.3 s of compilation, most of it in XLA, which releases
         the GIL). The program is evaluated once at ``z0`` on one block, the result dropped; an
-        error there is left for the first real call to raise. :meth:`solve` waits for it."""
+        error there is left for the first real call to raise. :meth:`solve` waits for it.
+
+        JAX's ``enable_x64`` context is thread-local and :func:`brdffit.fit` sets it for the
+        call, so the thread takes the caller's setting: otherwise it compiles a float32 program
+        nobody uses, and tracing under two settings at once broke the solve's dtypes (a float32
+        iterate beside a float64 trial point, seen once in the example notebook)."""
+        x64 = bool(jax.config.jax_enable_x64)
 
         def work():
             try:
-                second_order(self.problem, z0, self.data, 1)
+                with jax.enable_x64(x64):
+                    second_order(self.problem, z0, self.data, 1)
             except Exception:  # noqa: BLE001 (the real call reports it)
                 pass
 
