@@ -557,23 +557,3 @@ def test_render_merl_fills_the_grid_with_the_fitted_model(small_fit, tmp_path):
     write_merl(tmp_path / "fit.binary", table)
     np.testing.assert_array_equal(read_merl(tmp_path / "fit.binary").rgb, table.rgb)
     assert model.name == res.model.name
-
-
-def test_the_second_order_program_compiles_under_the_callers_x64_setting(monkeypatch):
-    """The second-order program is compiled on a background thread while the fit goes on
-    (:meth:`brdffit.fitting.stages.Run.compile_second_order`). JAX's ``enable_x64`` context is
-    thread-local and :func:`brdffit.fit` sets it for the call only: the thread must trace under
-    the caller's setting, or it compiles a program nobody uses (and, traced beside the solve,
-    once broke the solve's dtypes)."""
-    from brdffit.fitting import stages
-
-    seen = []
-    monkeypatch.setattr(stages, "second_order",
-                        lambda problem, z, data, target: seen.append(
-                            (bool(jax.config.jax_enable_x64), jnp.asarray(z).dtype)))
-    run = stages.Run(None, None, 0.0, 10, None)
-    for x64 in (True, False):
-        with jax.enable_x64(x64):
-            started = run.compile_second_order(np.zeros(3))
-        started.compiling.join()
-        assert seen[-1] == (x64, np.dtype("float64" if x64 else "float32"))

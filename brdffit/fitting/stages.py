@@ -23,10 +23,8 @@ table. Measurements and the history of these choices: ``docs/design/fitting.md``
 from __future__ import annotations
 
 import dataclasses
-import threading
 
 import equinox as eqx
-import jax
 import numpy as np
 
 from .data import FitData
@@ -91,31 +89,6 @@ class Run:
     floor: object
     max_steps: int
     events: Events
-    compiling: threading.Thread | None = None
-
-    def compile_second_order(self, z0) -> Run:
-        """This run, with the second-order program (:func:`.solve.second_order`) being compiled
-        on a background thread, so that its compilation overlaps the solve's and the first
-        stage (a cold ``ggx`` process: 2.3 s of compilation, most of it in XLA, which releases
-        the GIL). The program is evaluated once at ``z0`` on one block, the result dropped; an
-        error there is left for the first real call to raise. :meth:`solve` waits for it.
-
-        JAX's ``enable_x64`` context is thread-local and :func:`brdffit.fit` sets it for the
-        call, so the thread takes the caller's setting: otherwise it compiles a float32 program
-        nobody uses, and tracing under two settings at once broke the solve's dtypes (a float32
-        iterate beside a float64 trial point, seen once in the example notebook)."""
-        x64 = bool(jax.config.jax_enable_x64)
-
-        def work():
-            try:
-                with jax.enable_x64(x64):
-                    second_order(self.problem, z0, self.data, 1)
-            except Exception:  # noqa: BLE001 (the real call reports it)
-                pass
-
-        thread = threading.Thread(target=work, name="brdffit-compile", daemon=True)
-        thread.start()
-        return dataclasses.replace(self, compiling=thread)
 
     def solve(self, solver, z0, active: int, newton: bool = False) -> Solved:
         """Up to ``max_steps`` solver steps from ``z0`` over the first ``active`` blocks, with
@@ -134,8 +107,6 @@ class Run:
         floor = self.floor if active == chunks else self.floor * active / chunks
         self.events.floor = float(floor)
         total, out, model = 0, None, newton
-        if newton and self.compiling is not None:
-            self.compiling.join()
         while total < self.max_steps:
             steps = min(ROUND_STEPS, self.max_steps - total)
             second = second_order(self.problem, z0, self.data, active) if model else None
@@ -193,20 +164,14 @@ def best_of(problem: Problem, solver, data: FitData, zs, max_steps: int, scan: b
     """Solve from every start in ``zs``; the best solve (:meth:`Solved.better_than`) and the
     cost of each start."""
     run = Run(problem, data, cost_floor(problem, data), max_steps, events)
-    if len(plan(problem.chunks, data.wi.shape[0] // problem.chunks, scan)) > 1:
-        run = run.compile_second_order(zs[0])  # Newton's model from the second stage on
     ftol = float(solver.ftol)
     best, costs = None, []
-    try:
-        for k, z0 in enumerate(zs):
-            events.emit("start", start=k, of=len(zs))
-            out = run.start(solver, z0, k, scan)
-            costs.append(out.ranked_cost)
-            events.emit("start-done", start=k, cost=costs[-1], steps=int(out.steps),
-                        success=out.converged(ftol))
-            if best is None or out.better_than(best, ftol):
-                best = out
-    finally:  # never leave the compiling thread behind (an interrupt, an error)
-        if run.compiling is not None:
-            run.compiling.join()
+    for k, z0 in enumerate(zs):
+        events.emit("start", start=k, of=len(zs))
+        out = run.start(solver, z0, k, scan)
+        costs.append(out.ranked_cost)
+        events.emit("start-done", start=k, cost=costs[-1], steps=int(out.steps),
+                    success=out.converged(ftol))
+        if best is None or out.better_than(best, ftol):
+            best = out
     return best, costs
