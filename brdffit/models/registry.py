@@ -87,6 +87,10 @@ class PerPass:
     wi, wo)``. The fitter builds the tables, and their derivatives with respect to the
     parameters named in ``uses`` (the only ones they depend on), once per pass instead of once
     per block; a derivative with respect to any other parameter skips them.
+
+    Unlike ``Model.stages`` (evaluation only), ``apply`` takes the parameters beside the
+    tables, so the fitter's forward-mode tangent of a parameter outside ``uses`` closes over the
+    tables instead of carrying a zero tangent through them.
     """
 
     build: Callable
@@ -108,7 +112,7 @@ class Model:
     ``combine(s, per_pair(s, wi, wo))`` with ``s = prepare(params)``.
     :func:`brdffit.models.evaluate.evaluate_model` then prepares once per call and compiles the
     other two as separate programs (see :mod:`brdffit.models.aps` for why that is faster). The
-    fitter always uses ``fn``.
+    fitter uses ``fn``, or ``per_pass`` where a model declares it.
 
     ``start`` (optional) is the model's data-driven starting point for a fit:
     ``start(features) -> {name: value}``, from features the fitter reads off the data
