@@ -28,6 +28,13 @@ class SampleSet:
         channels: 3 for RGB; 1 for a monochrome measurement, stored in all three columns of
             ``rgb`` (so every consumer sees RGB); a fit uses channel 0 only and fits a grey
             model (:func:`brdffit.api.fit`).
+        weight: ``None`` (every sample stands for the same share of the angle domain), or
+            ``(N,)`` finite weights ``≥ 0``: the share of the Rusinkiewicz angle domain
+            ``(θh, θd, φd)`` that each sample stands for, relative to the layout's average
+            sample (so about 1 on average). A layout that samples some angles more densely
+            than others says so here (a MERL table: the width in ``θh`` of each cell, which
+            undoes the format's ``θh`` warp, :func:`data_formats.merl.theta_h_weights`), and
+            the fitter's default ``weighting="angles"`` multiplies each squared residual by it.
     """
 
     wi: np.ndarray
@@ -38,6 +45,7 @@ class SampleSet:
     path: str | None = None
     sigma: np.ndarray | None = None
     channels: int = 3
+    weight: np.ndarray | None = None
 
     def __post_init__(self):
         if self.channels not in (1, 3):
@@ -51,6 +59,12 @@ class SampleSet:
             raise ValueError(f"SampleSet.sigma must have shape ({n}, 3), got {np.shape(self.sigma)}")
         if self.valid.shape != (n,):
             raise ValueError(f"SampleSet.valid must have shape ({n},), got {self.valid.shape}")
+        if self.weight is not None:
+            w = np.asarray(self.weight)
+            if w.shape != (n,):
+                raise ValueError(f"SampleSet.weight must have shape ({n},), got {w.shape}")
+            if not (np.all(np.isfinite(w)) and np.all(w >= 0)):
+                raise ValueError("SampleSet.weight must be finite and >= 0")
 
     def __len__(self) -> int:
         return len(self.rgb)

@@ -30,6 +30,7 @@ from data_formats.merl import (
     read_merl,
     snap_to_file,
     synthesize,
+    theta_h_weights,
     write_merl,
 )
 from data_formats.rusinkiewicz import dirs_from_half_diff
@@ -322,6 +323,33 @@ def test_to_samples_is_the_grid_in_file_order(shiny):
     corner_i, corner_o = cell_directions(SMALL)
     above = (corner_i[..., 2] > 1e-9) & (corner_o[..., 2] > 1e-9)
     assert np.array_equal(s.valid, above.reshape(-1)) and not above.all()
+
+
+def test_theta_h_weights_are_the_cells_widths_against_the_mean():
+    """Row ``i`` covers ``[(i/n)², ((i+1)/n)²)·90°``: the widths from the cell corners (an
+    independent route: ``cell_angles``, then differences up to 90°) over the mean width 90°/n."""
+    for shape in (MERL_SHAPE, SMALL):
+        n = shape[0]
+        corners = cell_angles(np.arange(n), 0, 0, shape=shape)[0]
+        widths = np.diff(np.append(corners, np.pi / 2))
+        w = theta_h_weights(shape)
+        np.testing.assert_allclose(w, widths / (np.pi / 2 / n), rtol=1e-12)
+        assert w.mean() == pytest.approx(1.0, rel=1e-14) and not w.flags.writeable
+    assert theta_h_weights()[0] == 1 / 90 and theta_h_weights()[-1] == 179 / 90
+    # every sample of a table carries its row's weight, in file order
+    s = MERLTable.from_rgb(np.ones(SMALL + (3,))).to_samples()
+    i = np.unravel_index(np.arange(len(s)), SMALL)[0]
+    np.testing.assert_array_equal(s.weight, theta_h_weights(SMALL)[i])
+
+
+def test_sample_set_weights_are_checked():
+    wi = np.tile([[0.0, 0.6, 0.8]], (4, 1))
+    args = (wi, wi.copy(), np.ones((4, 3)), np.ones(4, bool))
+    assert SampleSet(*args, weight=np.array([0.0, 1.0, 2.0, 1.0])).weight is not None
+    for bad, what in ((np.ones(3), "shape"), (np.array([1.0, -1.0, 1.0, 1.0]), ">= 0"),
+                      (np.array([1.0, np.nan, 1.0, 1.0]), "finite")):
+        with pytest.raises(ValueError, match=f"SampleSet.weight.*{what}"):
+            SampleSet(*args, weight=bad)
 
 
 def test_synthesize_marks_the_horizon_missing_and_checks_values(shiny):

@@ -13,6 +13,9 @@ NumPy only. Facts implemented here (``../shared/reference/merl-format.md``, Burl
 * Cell ``(i, j, k)`` covers ``theta_h`` in ``[(i/n)^2, ((i+1)/n)^2) * 90 deg`` (warped to put
   samples near the specular peak), ``theta_d`` in ``[j, j+1) * 90/n_td deg`` and the folded
   ``phi_d`` in ``[k, k+1) * 180/n_pd deg``; the value stands for the cell's *lower corner*.
+  The cells are therefore not equal shares of the angle domain: row ``i`` is ``(2i+1)/n`` times
+  the average width in ``theta_h`` (:func:`theta_h_weights`, carried by
+  :meth:`MERLTable.to_samples` as ``SampleSet.weight``).
 
 Angles and directions follow :mod:`data_formats.rusinkiewicz` (``z`` is the normal, ``phi_h = 0``).
 
@@ -33,6 +36,7 @@ from ._grid import (
     cell_angles,
     cell_directions,
     merl_index,
+    theta_h_weights,
 )
 from ._lookup import lookup_linear, lookup_linear_angles, lookup_nearest, lookup_nearest_angles
 from ._scale import SCALE, snap_to_file
@@ -42,7 +46,7 @@ from ._table import MERLTable
 __all__ = [
     "N_TH", "N_TD", "N_PD", "MERL_SHAPE", "SCALE", "MAX_DIM", "MAX_CELLS", "HORIZON_EPS",
     "MERLFormatError", "MERLTable", "read_merl", "write_merl", "expected_file_size", "snap_to_file",
-    "merl_index", "cell_angles", "cell_directions", "above_horizon",
+    "merl_index", "cell_angles", "cell_directions", "above_horizon", "theta_h_weights",
     "lookup_nearest", "lookup_linear", "lookup_nearest_angles", "lookup_linear_angles",
     "synthesize",
 ]

@@ -154,3 +154,27 @@ def _above_horizon(shape):
     mask = (wi[..., 2] > HORIZON_EPS) & (wo[..., 2] > HORIZON_EPS)
     mask.flags.writeable = False
     return mask
+
+
+def theta_h_weights(shape=MERL_SHAPE):
+    r"""``(n_th,)``: the width in ``theta_h`` of each cell row, relative to the mean width.
+
+    Row ``i`` covers ``theta_h`` in ``[(i/n)^2, ((i+1)/n)^2) * 90 deg``, so its width is
+    ``(2i + 1)/n^2 * 90 deg`` and, relative to the mean ``90 deg / n``,
+
+    .. math:: w_i = \frac{2i + 1}{n}, \qquad \frac1n \sum_{i<n} w_i = 1 .
+
+    The ``theta_d`` and ``phi_d`` rows are evenly spaced, so ``w_i`` is each cell's share of
+    the angle domain ``(theta_h, theta_d, phi_d)`` against the average cell: weighting each
+    cell's squared residual by it undoes the warp, which puts ``n^2/(2i+1)`` times the average
+    density of cells near the specular peak (cell 0 stands for 1/90 of an average cell, cell 89
+    for 179/90). Read-only, cached.
+    """
+    return _theta_h_weights(shape_key(shape)[0])
+
+
+@functools.lru_cache(maxsize=4)
+def _theta_h_weights(n_th):
+    w = (2.0 * np.arange(n_th) + 1.0) / n_th
+    w.flags.writeable = False
+    return w

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
 from ..samples import SampleSet
-from ._grid import above_horizon, cell_angles, cell_directions
+from ._grid import above_horizon, cell_angles, cell_directions, shape_key, theta_h_weights
 from ._lookup import lookup_linear, lookup_nearest
 from ._scale import CHANNELS, snap_to_file
 
@@ -106,6 +107,8 @@ class MERLTable:
         """The whole grid as a :class:`SampleSet`, flattened in file order (``(i*n_td+j)*n_pd+k``).
 
         Directions are each cell's lower corner (:func:`cell_directions`, ``phi_h = 0``);
+        ``weight`` is each cell's width in ``theta_h`` relative to the mean
+        (:func:`~data_formats.merl.theta_h_weights`: the warp's cell density undone);
         ``valid`` is the stored mask AND both directions strictly above the horizon
         (:func:`above_horizon`): a cell whose corner lies on or below the horizon cannot be
         compared with a model even when the file holds an (extrapolated) value for it.
@@ -116,7 +119,7 @@ class MERLTable:
         n = int(np.prod(self.shape))
         valid = self.valid.reshape(n) & above_horizon(self.shape).reshape(n)
         return SampleSet(wi.reshape(n, 3), wo.reshape(n, 3), self.rgb.reshape(n, 3), valid,
-                         name=self.name, path=self.path)
+                         name=self.name, path=self.path, weight=_cell_weights(self.shape))
 
     def lookup(self, wi, wo, method: str = "nearest"):
         """BRDF at direction pairs ``(..., 3)``: ``method`` is ``"nearest"``
@@ -127,6 +130,19 @@ class MERLTable:
                 f"MERLTable.lookup: unknown method {method!r}; expected one of {sorted(fns)}"
             )
         return fns[method](self, wi, wo)
+
+
+def _cell_weights(shape) -> np.ndarray:
+    """``theta_h_weights`` of every cell, flattened in file order (read-only, cached)."""
+    return _flat_cell_weights(shape_key(shape))
+
+
+@functools.lru_cache(maxsize=2)
+def _flat_cell_weights(shape):
+    n_th, n_td, n_pd = shape
+    w = np.repeat(theta_h_weights(shape), n_td * n_pd)
+    w.flags.writeable = False
+    return w
 
 
 def _table_info(table: MERLTable) -> dict:
