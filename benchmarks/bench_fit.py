@@ -95,14 +95,18 @@ def ggx_numpy(x, wi, wo):
 
 
 def scipy_reference(samples, x0):
-    """``least_squares`` on the log residual of the same cells (above the horizon, valid)."""
+    """``least_squares`` on the log residual of the same cells (above the horizon, valid), each
+    times the square root of its cell's share of the angles (``SampleSet.weight`` over its mean
+    on these cells: brdffit's default ``weighting="angles"``)."""
     ok = samples.valid & (samples.wi[:, 2] > 0) & (samples.wo[:, 2] > 0)
     wi, wo, rho = samples.wi[ok], samples.wo[ok], samples.rgb[ok]
     ci = wi[:, 2:3]
     target = np.log1p(rho * ci)
+    w = np.ones(len(wi)) if samples.weight is None else samples.weight[ok]
+    sw = np.sqrt(w / w.mean())[:, None]
 
     def residual(x):
-        return (np.log1p(ggx_numpy(x, wi, wo) * ci) - target).ravel()
+        return (sw * (np.log1p(ggx_numpy(x, wi, wo) * ci) - target)).ravel()
 
     lo = np.array([0.0] * 6 + [1e-3, 0.0])
     hi = np.ones(8)

@@ -22,8 +22,9 @@ written). For each material and model, with the default options of :func:`brdffi
 A summary line per model: successes, median and worst warm time, NaNs. Then the scipy
 reference on the first ``--scipy`` materials: ``scipy.optimize.least_squares`` (trf, 2-point
 differences, bounds, ``x_scale='jac'``) on the same ``ggx`` log residuals (an independent NumPy
-transcription of the model, ``bench_fit.ggx_numpy``), the same cells and the same start
-(``result.init``): its time and cost against brdffit's warm time and cost.
+transcription of the model, ``bench_fit.ggx_numpy``), with the same cell weights (each
+cell's share of the angles, brdffit's default ``weighting="angles"``), the same cells and the
+same start (``result.init``): its time and cost against brdffit's warm time and cost.
 
 The machine may be shared: the load average is printed with the figures.
 """

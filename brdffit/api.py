@@ -128,7 +128,7 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
         **kwargs: the options of :func:`brdffit.fitting.fit` (``loss``, ``solver``, ``init``,
             ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,
             ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
-            ``covariance``; :class:`brdffit.fitting.Settings` describes each).
+            ``covariance``, ``weighting``; :class:`brdffit.fitting.Settings` describes each).
     """
     import dataclasses
 

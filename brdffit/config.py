@@ -13,6 +13,7 @@ command-line flags), a later layer winning key by key. Layout (every key optiona
     multistart = 0                # extra random starts, best kept
 
     covariance = "sandwich"       # or "gn"
+    weighting = "angles"          # or "samples": how samples count against each other
 
     [solver]                      # solver and its tolerances
     name = "lm"
@@ -75,6 +76,7 @@ _SCALARS = {  # key -> (types, check, what the check wants); numeric ranges: che
     "seed": (int, None, "a non-negative integer"),
     "multistart": (int, None, "a non-negative integer"),
     "covariance": (str, lambda v: v in ("sandwich", "gn"), '"sandwich" or "gn"'),
+    "weighting": (str, lambda v: v in ("angles", "samples"), '"angles" or "samples"'),
 }
 _SOLVER = {
     "name": (str, None, "a solver name"),
@@ -165,7 +167,8 @@ class FitOptions:
 
     ``solver`` holds the solver name; ``rtol``, ``atol``, ``ftol``, ``max_steps`` its
     tolerances, ``precision`` the model evaluation's dtype; ``covariance`` how standard errors
-    are estimated; ``scan`` whether the start scan runs (Python only: presets do not set it).
+    are estimated; ``weighting`` how samples count against each other; ``scan`` whether the
+    start scan runs (Python only: presets do not set it).
     ``brdffit.fit(table, model, options)`` takes it as it is.
     ``init`` and ``fixed`` map parameter names to a number or an RGB triple; ``bounds`` maps
     parameter names to ``(lower, upper)``. ``sources`` lists the presets merged in.
@@ -184,6 +187,7 @@ class FitOptions:
     ftol: float | None = None
     precision: str | None = None
     covariance: str | None = None
+    weighting: str | None = None
     scan: bool | None = None
     init: Mapping = dataclasses.field(default_factory=dict)
     fixed: Mapping = dataclasses.field(default_factory=dict)
@@ -213,7 +217,8 @@ class FitOptions:
     def fit_kwargs(self) -> dict:
         """Keyword arguments for :func:`brdffit.fit`: only what was set (the model excluded)."""
         keys = ("loss", "solver", "cutoff", "subsample", "seed", "multistart",
-                "rtol", "atol", "ftol", "max_steps", "precision", "covariance", "scan")
+                "rtol", "atol", "ftol", "max_steps", "precision", "covariance", "weighting",
+                "scan")
         kwargs = {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
         for k in ("init", "fixed", "bounds"):
             if getattr(self, k):

@@ -23,7 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from data_formats import SampleSet
-from data_formats.merl import MERL_SHAPE, above_horizon, cell_angles, cell_directions
+from data_formats.merl import (
+    MERL_SHAPE, above_horizon, cell_angles, cell_directions, theta_h_weights,
+)
 
 DATA = Path(__file__).resolve().parent / "data"
 _WEIGHTS = None
@@ -61,11 +63,13 @@ def brdf_hd(name: str, th, td, pd) -> np.ndarray:
 
 def merl_cells(name: str, n_cells: int, seed: int = 0) -> SampleSet:
     """``n_cells`` MERL cells (above the horizon, a seeded random choice, ascending in file
-    order), with the material's values at their lower corners, as a :class:`SampleSet`."""
+    order), with the material's values at their lower corners and the cells' ``θh`` widths as
+    weights (what ``MERLTable.to_samples`` gives), as a :class:`SampleSet`."""
     ok = np.flatnonzero(above_horizon(MERL_SHAPE).ravel())
     rows = np.sort(np.random.default_rng(seed).choice(ok, size=n_cells, replace=False))
     i, j, k = np.unravel_index(rows, MERL_SHAPE)
     th, td, pd = cell_angles(i, j, k)
     wi, wo = (a.reshape(-1, 3)[rows] for a in cell_directions(MERL_SHAPE))
     rgb = brdf_hd(name, th, td, pd)
-    return SampleSet(wi, wo, rgb, np.ones(len(rows), bool), name=name)
+    return SampleSet(wi, wo, rgb, np.ones(len(rows), bool), name=name,
+                     weight=theta_h_weights(MERL_SHAPE)[i])

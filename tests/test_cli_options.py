@@ -38,6 +38,18 @@ def test_solver_flags_reach_the_fit_and_its_provenance(samples_csv, tmp_path, ca
     assert df.loc["alpha", "lower"] == 0.01 and df.loc["alpha", "upper"] == 0.5
 
 
+def test_weighting_flag_reaches_the_fit_and_a_wrong_one_is_a_usage_error(samples_csv, tmp_path,
+                                                                         capsys):
+    out = tmp_path / "r.json"
+    assert main(["fit", str(samples_csv), "--model", "ggx", "--weighting", "samples",
+                 "--out", str(out), "--quiet"]) == 0
+    assert json.loads(out.read_text())["provenance"]["options"]["weighting"] == "samples"
+    capsys.readouterr()
+    assert main(["fit", str(samples_csv), "--model", "ggx", "--weighting", "solid-angle"]) == 2
+    err = capsys.readouterr().err
+    assert "--weighting: invalid choice: 'solid-angle'" in err and "Traceback" not in err
+
+
 def test_bad_bound_flag_is_a_one_line_usage_error(samples_csv, capsys):
     assert main(["fit", str(samples_csv), "--model", "ggx", "--bound", "alpha=0.5"]) == 2
     assert "--bound 'alpha=0.5': expected NAME=LOWER,UPPER" in capsys.readouterr().err

@@ -61,6 +61,7 @@ def test_parse_full_layout():
         subsample = 1000
         seed = 3
         multistart = 2
+        weighting = "samples"
         [solver]
         name = "dogleg"
         rtol = 1e-6
@@ -76,7 +77,8 @@ def test_parse_full_layout():
     opts = parse_config(data, "x.toml")
     assert opts.fit_kwargs() == {
         "loss": "log", "solver": "dogleg", "cutoff": 75.0, "subsample": 1000, "seed": 3,
-        "multistart": 2, "rtol": 1e-6, "max_steps": 50, "init": {"alpha": 0.2},
+        "multistart": 2, "rtol": 1e-6, "max_steps": 50, "weighting": "samples",
+        "init": {"alpha": 0.2},
         "fixed": {"f0": (0.9, 0.6, 0.3)}, "bounds": {"alpha": (0.01, 0.5)},
     }
     assert isinstance(opts.cutoff, float)
@@ -104,6 +106,7 @@ def test_flags_override_preset_and_free_fixed_parameters():
         ("cutoff = 95", "'cutoff' must be degrees in (0, 90], got 95"),
         ("subsample = 1.5", "'subsample' must be a sample count in [1, 16777216] or a fraction in (0, 1], got 1.5"),
         ("seed = true", "'seed' must be a non-negative integer, got bool True"),
+        ('weighting = "angle"', """'weighting' must be "angles" or "samples", got 'angle'"""),
         ("model = 3", "'model' must be a model name, got int 3"),
         ("init = 3", "'init' must be a table ([init]), got 3"),
         ("[init]\nalpha = 'x'", "[init] 'alpha' must be a finite number or a list of 3 finite numbers"),

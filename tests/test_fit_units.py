@@ -2,6 +2,7 @@
 errors, and the result object. Independent references: NumPy transcriptions, dense Jacobians
 from ``jax.jacfwd``, closed forms."""
 
+import dataclasses
 import json
 
 import jax
@@ -416,6 +417,36 @@ def test_select_interleaves_blocks_in_block_order():
     rows = np.rint(np.asarray(sel.data.rgb)[:, 0] * 1e6).astype(int).reshape(5, -1)
     for b, k in enumerate(block_order(5)):
         np.testing.assert_array_equal(rows[b], np.arange(k, n, 5))
+
+
+def test_select_weights_each_residual_by_its_samples_share_of_the_angles():
+    """``weighting="angles"`` multiplies a residual by ``sqrt(SampleSet.weight)`` of its row,
+    scaled to mean 1 over the cells used (rows kept by a cutoff keep their own weights);
+    ``"samples"`` and data with ``σ`` (χ² terms) do not reweight; an unknown weighting is
+    refused."""
+    s = ggx_samples(3000)
+    w = RNG.uniform(0.0, 3.0, 3000)
+    weighted = dataclasses.replace(s, weight=w)
+    loss = get_loss("log")
+    plain = np.asarray(select(s, loss).data.sqrt_weight)[:3000]
+    got = np.asarray(select(weighted, loss).data.sqrt_weight)[:3000]
+    np.testing.assert_allclose(got, plain * np.sqrt(w / w.mean())[:, None], rtol=1e-14)
+    cut = select(weighted, loss, cutoff=60)  # scaled to mean 1 over the cells kept
+    k, kept = len(cut.index), w[cut.index]
+    np.testing.assert_allclose(np.asarray(cut.data.sqrt_weight)[:k],
+                               plain[cut.index] * np.sqrt(kept / kept.mean())[:, None], rtol=1e-14)
+    same = np.asarray(select(weighted, loss, weighting="samples").data.sqrt_weight)[:3000]
+    np.testing.assert_array_equal(same, plain)
+    sigma = np.full((3000, 3), 0.01)
+    np.testing.assert_array_equal(
+        np.asarray(select(dataclasses.replace(weighted, sigma=sigma), loss).data.sqrt_weight),
+        np.asarray(select(dataclasses.replace(s, sigma=sigma), loss).data.sqrt_weight))
+    with pytest.raises(UnknownNameError, match="samples"):
+        select(weighted, loss, weighting="angle")
+    with pytest.raises(ConfigError, match="every usable sample has weight 0"):
+        select(dataclasses.replace(s, weight=np.zeros(3000)), loss)
+    with pytest.raises(UnknownNameError, match="angles"):
+        brdffit.fit(weighted, "ggx", weighting="solid-angle")
 
 
 def test_select_option_errors():

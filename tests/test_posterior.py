@@ -92,6 +92,11 @@ def test_log_posterior_matches_numpy_transcription(ggx_table, ggx_fit):
     )
     d = sel.data
     wi, wo, rgb, w = (np.asarray(a) for a in (d.wi, d.wo, d.rgb, d.sqrt_weight))
+    used = np.all(w > 0, axis=1)
+    # each cell's θh width (2i + 1 on the warped axis) over their mean on the cells used
+    h = (wi + wo) / np.linalg.norm(wi + wo, axis=1, keepdims=True)
+    i = np.rint(np.sqrt(np.arccos(np.clip(h[:, 2], -1, 1)) / (np.pi / 2)) * 30)
+    width = (2 * i + 1)[used] / np.mean((2 * i + 1)[used])
     model = brdffit.get_model("ggx")
     rng = np.random.default_rng(0)
     thetas = center + 0.01 * rng.standard_normal((4, len(center)))
@@ -99,7 +104,7 @@ def test_log_posterior_matches_numpy_transcription(ggx_table, ggx_fit):
     for theta, value in zip(thetas, got):
         pred = np.asarray(model(model.unflatten(theta), wi, wo))
         ci = wi[:, 2:3]
-        r = (np.log1p(pred * ci) - np.log1p(rgb * ci))[w > 0]  # log loss, unit weights
+        r = (np.sqrt(width)[:, None] * (np.log1p(pred * ci) - np.log1p(rgb * ci))[used]).ravel()
         m = r.size
         ll = -0.5 * np.sum(r**2) / 0.02**2 - m * np.log(0.02) - 0.5 * m * np.log(2 * np.pi)
         lp = -np.log(theta[6]) - 0.5 * ((theta[4] - 0.4) / 0.1) ** 2

@@ -15,6 +15,7 @@ FLAG_FOR = {
     "fixed": "--fix", "bounds": "--bound", "cutoff": "--cutoff", "subsample": "--subsample",
     "loss": "--loss", "solver": "--solver", "rtol": "--rtol", "atol": "--atol",
     "ftol": "--ftol", "precision": "--precision", "covariance": "--covariance",
+    "weighting": "--weighting",
     "seed": "--seed", "nwalkers": "--walkers", "nsteps": "--steps", "burn": "--burn",
     "noise": "--noise",
 }

@@ -85,6 +85,9 @@ def add_fit_options(target, solver=None) -> None:
                         help="residual weighting: linear, cosine, log, relative (+huber)")
     target.add_argument("--cutoff", type=float, metavar="DEG",
                         help="drop samples with θi or θo above DEG degrees")
+    target.add_argument("--weighting", choices=("angles", "samples"),
+                        help="how samples count: by the share of the angles each stands for "
+                        "(default; undoes the MERL θh warp) or once each")
     target.add_argument("--fix", action="append", metavar="NAME=VALUE",
                         help="hold a parameter at a value (f0=0.04 or f0=0.9,0.6,0.3); "
                         "repeatable")
@@ -148,7 +151,7 @@ def options_from(args):
         model=args.model, loss=args.loss, solver=args.solver, cutoff=args.cutoff,
         subsample=args.subsample, seed=args.seed, multistart=args.multistart,
         rtol=args.rtol, atol=args.atol, ftol=args.ftol, max_steps=args.max_steps,
-        precision=args.precision, covariance=args.covariance,
+        precision=args.precision, covariance=args.covariance, weighting=args.weighting,
         init=parse_assignments(args.init, "--init"), fixed=parse_assignments(args.fix, "--fix"),
         bounds=_parse_bounds(args.bound),
         sources=("command line",),

@@ -8,7 +8,7 @@ underscore name either. ``tests/test_fitting_surface.py`` checks both rules. Wha
 listed may change without notice.
 
 * the fit: :func:`fit`, its options (:data:`FIT_DEFAULTS`, :func:`fit_options`,
-  :class:`Settings`, :func:`tolerances`, :func:`default_precision`) and its result
+  :class:`Settings`, :func:`tolerances`, :func:`default_precision`, :data:`WEIGHTINGS`) and its result
   (:class:`FitResult`, :class:`FittedModel`, :func:`json_safe`, :func:`value_with_error`);
 * the registries: losses (:data:`LOSSES`, :data:`DEFAULT_LOSS`, :func:`get_loss`,
   :class:`Loss`) and solvers (:data:`SOLVERS`, :data:`DEFAULT_SOLVER`);
@@ -19,7 +19,7 @@ listed may change without notice.
   (:func:`measure`, :class:`Features`).
 """
 
-from .data import FitData, Selection, Subsample, check_enough, select
+from .data import WEIGHTINGS, FitData, Selection, Subsample, check_enough, select
 from .fitter import fit
 from .losses import DEFAULT_LOSS, LOSSES, Loss, get_loss
 from .options import FIT_DEFAULTS, Settings, default_precision, fit_options, tolerances
@@ -35,6 +35,7 @@ __all__ = [
     "FIT_DEFAULTS",
     "LOSSES",
     "SOLVERS",
+    "WEIGHTINGS",
     "Features",
     "FitData",
     "FitResult",

@@ -51,7 +51,7 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             :class:`~brdffit.fitting.options.Settings`: ``loss``, ``solver``, ``init``,
             ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,
             ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
-            ``covariance``. All are checked before the table is read.
+            ``covariance``, ``weighting``. All are checked before the table is read.
     """
     given = fit_options(options, **kwargs)
     t0 = time.perf_counter()
@@ -111,7 +111,7 @@ def prepare(table, model, settings: Settings) -> Prepared:
     samples = table.to_samples()
     scalars = free_scalars(model, settings.fixed, settings.bounds)  # bad names fail before select
     sel = select(samples, settings.loss, cutoff=settings.cutoff, subsample=settings.subsample,
-                 seed=settings.seed, dtype=settings.precision)
+                 seed=settings.seed, dtype=settings.precision, weighting=settings.weighting)
     return prepare_on(sel, model, settings, samples.name, scalars)
 
 

@@ -32,11 +32,14 @@ comparison of the four on a real-like table is in ``docs/design/fitting.md``;
 
 The default stays ``log`` over every cell above the horizon (no default ``cutoff``) on the
 measured materials too. Against the published Cook–Torrance roughness of 69 MERL materials,
-what moved the ``beckmann`` fits was the Fresnel term's grazing value (a free ``F90``,
-:mod:`brdffit.models.standard`: 36% → 78% within a factor 1.5), not the weighting: with
-``F90`` free, an 80° cutoff lowers that figure (to 70%: the sharp lobes end too narrow), and
-the ``cosine`` loss and Ngan 2005's linear ``ρ cosθi`` residual make sharp lobes 4–5× too
-narrow (``docs/design/fitting.md`` §7 has these runs and Ngan's solid-angle cell weights).
+two things moved the ``beckmann`` fits: the Fresnel term's grazing value (a free ``F90``,
+:mod:`brdffit.models.standard`: 36% → 78% within a factor 1.5) and how the cells count
+against each other (each MERL cell weighted by its width in ``θh``, which undoes the
+format's warp towards the peak: 78% → 91%, the default ``weighting="angles"`` of
+:mod:`brdffit.fitting.data`). The loss itself did not: with ``F90`` free, an 80° cutoff
+lowers that figure (to 70%: the sharp lobes end too narrow), and the ``cosine`` loss and
+Ngan 2005's linear ``ρ cosθi`` residual make sharp lobes 4–5× too narrow
+(``docs/design/fitting.md`` §7 and §10 have these runs).
 """
 
 from __future__ import annotations

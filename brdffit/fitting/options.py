@@ -4,7 +4,7 @@
 :func:`fit_options` merges a ``FitOptions`` (or a mapping of option names) with keyword
 arguments, the keywords winning option by option, and refuses unknown names, out-of-range
 numbers (:func:`brdffit.config.check_fit_options`, the one place the ranges live) and unknown
-``covariance``/``precision`` names before any work. :meth:`Settings.of` then resolves what is
+``covariance``/``precision``/``weighting`` names before any work. :meth:`Settings.of` then resolves what is
 left: the loss by name, the precision and the tolerances that depend on it.
 """
 
@@ -16,6 +16,7 @@ from collections.abc import Mapping
 import jax
 
 from ..errors import UnknownNameError
+from .data import WEIGHTINGS
 from .losses import DEFAULT_LOSS, Loss, get_loss
 from .solvers import DEFAULT_SOLVER, FTOL
 
@@ -38,6 +39,7 @@ FIT_DEFAULTS = {
     "scan": True,
     "precision": None,
     "covariance": "sandwich",
+    "weighting": WEIGHTINGS[0],
 }
 COVARIANCES = ("sandwich", "gn")
 PRECISIONS = ("float32", "float64")
@@ -68,7 +70,8 @@ def fit_options(options=None, **kwargs) -> dict:
 
     Raises ``TypeError`` for a name that is no option (listing the valid ones),
     :class:`~brdffit.errors.ConfigError` for a number out of its range and
-    :class:`~brdffit.errors.UnknownNameError` for an unknown ``covariance`` or ``precision``.
+    :class:`~brdffit.errors.UnknownNameError` for an unknown ``covariance``, ``precision`` or
+    ``weighting``.
     """
     from ..config import check_fit_options
 
@@ -93,6 +96,8 @@ def fit_options(options=None, **kwargs) -> dict:
         raise UnknownNameError("covariance", str(given["covariance"]), list(COVARIANCES))
     if given.get("precision") not in (None, *PRECISIONS):
         raise UnknownNameError("precision", str(given["precision"]), list(PRECISIONS))
+    if given.get("weighting", WEIGHTINGS[0]) not in WEIGHTINGS:
+        raise UnknownNameError("weighting", str(given["weighting"]), list(WEIGHTINGS))
     return given
 
 
@@ -129,6 +134,10 @@ class Settings:
             float64 either way when x64 is enabled); default :func:`default_precision`.
         covariance: ``"sandwich"`` (default, robust to heteroscedastic residuals) or ``"gn"``
             (classical ``s² (JᵀJ)⁻¹``); see :mod:`brdffit.fitting.statistics`.
+        weighting: ``"angles"`` (default): each squared residual counts by the share of the
+            angle domain its sample stands for (``SampleSet.weight``; on a MERL table the
+            ``θh`` width of its cell, which undoes the format's warp towards the peak);
+            ``"samples"``: every sample counts once. See :mod:`brdffit.fitting.data`.
     """
 
     loss: Loss
@@ -147,6 +156,7 @@ class Settings:
     scan: bool
     precision: str
     covariance: str
+    weighting: str
 
     @classmethod
     def of(cls, given: Mapping) -> Settings:
@@ -159,5 +169,5 @@ class Settings:
             bounds=o["bounds"], cutoff=o["cutoff"], subsample=o["subsample"], seed=o["seed"],
             multistart=int(o["multistart"]), max_steps=int(o["max_steps"]), rtol=rtol,
             atol=atol, ftol=ftol, scan=bool(o["scan"]), precision=precision,
-            covariance=o["covariance"],
+            covariance=o["covariance"], weighting=o["weighting"],
         )

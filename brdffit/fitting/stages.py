@@ -3,7 +3,7 @@
 Each start runs through up to three stages, each beginning where the previous one ended:
 
 1. **scan** (``scan=True``, models with a free lobe width): the start and copies with the lobe
-   widths shifted by ``SCAN_SHIFTS`` (a factor of about 8 either way), each solved to the
+   widths divided and multiplied by ``SCAN_FACTOR`` (8), each solved to the
    loose ``SCAN_FTOL`` on the first blocks holding ``SCAN_CELLS`` cells; the lowest cost goes
    on (a real table can have several minima: a narrow lobe on the peak, a wide one on the
    glossy tail);
@@ -42,9 +42,11 @@ WARM_FRACTION = 1 / 16
 #: (an evenly spread subset; all of a smaller selection), to the loose tolerance ``SCAN_FTOL``.
 SCAN_CELLS = 8192
 SCAN_FTOL = 1e-4
-#: Shifts of the log-scaled parameters (the lobe widths), in box units, of the scan's
-#: candidate starts: a box unit is the whole log range (``α ∈ [10⁻³, 1]``: 0.3 is a factor 8).
-SCAN_SHIFTS = (-0.3, 0.3)
+#: The scan's candidate starts divide and multiply every log-scaled parameter (the lobe
+#: widths) by this factor: 0.3 of the box for ``α ∈ [10⁻³, 1]``, 0.53 for Disney's
+#: ``roughness ∈ [0.02, 1]`` (a fixed shift in box units would be a factor 3.2 there, too
+#: little to leave the basin of a start read off a sharp peak: ``docs/design/fitting.md`` §10).
+SCAN_FACTOR = 8.0
 #: Solves run in rounds of at most this many steps (:meth:`Run.solve`).
 ROUND_STEPS = 10
 
@@ -59,12 +61,15 @@ def starts(z0: np.ndarray, multistart: int, seed: int) -> list[np.ndarray]:
 
 
 def candidates(problem: Problem, z0: np.ndarray) -> list[np.ndarray]:
-    """``z0`` and copies with every free log-scaled parameter (a lobe width) shifted by each of
-    ``SCAN_SHIFTS`` (clamped to the box); only ``z0`` if the model has none free."""
+    """``z0`` and two copies with every free log-scaled parameter (a lobe width) divided and
+    multiplied by ``SCAN_FACTOR`` (a shift of ``log(SCAN_FACTOR)`` over the parameter's log
+    range in box units, clamped to the box); only ``z0`` if the model has none free."""
     log = np.asarray(problem.log, bool)
     if not np.any(log):
         return [z0]
-    return [z0] + [np.where(log, np.clip(z0 + d, 0.0, 1.0), z0) for d in SCAN_SHIFTS]
+    span = np.asarray(problem.shi, float) - np.asarray(problem.slo, float)
+    shift = np.where(log, np.log(SCAN_FACTOR) / np.where(log, span, 1.0), 0.0)
+    return [z0] + [np.clip(z0 + sign * shift, 0.0, 1.0) for sign in (-1.0, 1.0)]
 
 
 def plan(chunks: int, block_cells: int, scan: bool) -> list[tuple[str, int]]:

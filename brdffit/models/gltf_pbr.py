@@ -67,7 +67,7 @@ GLTF_PBR = register(Model(
     params=(
         Param("base_color", (3,), 0.0, 1.0, 0.5, "baseColorFactor, linear RGB", per_channel=True),
         Param("metallic", (), 0.0, 1.0, 0.0, "metallicFactor: 0 dielectric, 1 metal"),
-        Param("roughness", (), 0.02, 1.0, 0.5, "roughnessFactor; α = roughness²"),
+        Param("roughness", (), 0.02, 1.0, 0.5, "roughnessFactor; α = roughness²", log=True),
     ),
     fn=gltf_pbr,
     start=metallic_roughness,

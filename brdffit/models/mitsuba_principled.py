@@ -168,7 +168,8 @@ def _unit(name, default, description):
 PRINCIPLED_PARAMS = (
     Param("base_color", (3,), BASE_COLOR_MIN, 1.0, 0.5,
           "surface color, linear RGB (Mitsuba base_color)"),
-    Param("roughness", (), 0.032, 1.0, 0.5, "roughness; α = roughness² ≥ 0.001 (Mitsuba roughness)"),
+    Param("roughness", (), 0.032, 1.0, 0.5, "roughness; α = roughness² ≥ 0.001 (Mitsuba roughness)",
+          log=True),
     _unit("anisotropic", 0.0, "anisotropy, aspect = sqrt(1 − 0.9 anisotropic)"),
     _unit("metallic", 0.0, "0 dielectric, 1 metal (Schlick of base_color), no diffuse"),
     Param("specular", (), 1e-3, 1.0, 0.5, "dielectric IOR via η = 2/(1 − sqrt(0.08 specular)) − 1 "

@@ -11,8 +11,9 @@ non-zero weight as independent Gaussians of one scale ``σ``:
         - m \log\sigma - \frac{m}{2}\log 2\pi .
 
 So the posterior sees the data exactly as the least-squares fit does (same cells, same
-transform ``g``, same weights ``w``), and with a flat prior its mode is the least-squares
-optimum. With a Huber loss the residual is already Huberized, so the "Gaussian" becomes Huber's
+transform ``g``, same weights ``w``, which include each cell's share of the angles under the
+default ``weighting="angles"``, scaled to mean 1, so that ``σ`` is the scatter of an average
+cell), and with a flat prior its mode is the least-squares optimum. With a Huber loss the residual is already Huberized, so the "Gaussian" becomes Huber's
 density (quadratic core, linear tails) — a robust likelihood, on purpose.
 
 ``σ`` is either **fixed** at the least-squares estimate ``s² = Σr²/(m − p)`` (the same ``s²``

@@ -24,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError
-from ..fitting import FitResult, Subsample, check_enough, default_precision, select
+from ..fitting import WEIGHTINGS, FitResult, Subsample, check_enough, default_precision, select
 from ..fitting import fit as run_fit
 from ..models.registry import get_model
 from .defaults import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_SUBSAMPLE_CELLS, DEFAULT_WALKERS
@@ -113,12 +113,24 @@ def _least_squares(table, result_or_model, loss, fit_kwargs):
     return result, time.perf_counter() - t
 
 
-def _posterior(result, samples, *, loss, cutoff, subsample, seed, bounds, noise, prior):
+def _weighting_of(result_or_model) -> str:
+    """The weighting a result was fitted with: its recorded option; ``"samples"`` for a result
+    whose recorded options predate the option (every sample counted once then); else the
+    default."""
+    options = (getattr(result_or_model, "provenance", None) or {}).get("options")
+    if options is None:
+        return WEIGHTINGS[0]
+    return options.get("weighting", "samples")
+
+
+def _posterior(result, samples, *, loss, cutoff, subsample, seed, bounds, noise, prior,
+               weighting="angles"):
     """The :class:`LogPosterior`, its selection, the start centre and scales, noise info."""
     model = get_model(result.model_name)
     loss_obj = loss_of(result, loss)
     dtype = default_precision()
-    sel = select(samples, loss_obj, cutoff=cutoff, subsample=subsample, seed=seed, dtype=dtype)
+    sel = select(samples, loss_obj, cutoff=cutoff, subsample=subsample, seed=seed, dtype=dtype,
+                 weighting=weighting)
     problem, lo, hi = problem_from(result, model, loss_obj, bounds, sel.chunks)
     check_enough(sel, len(problem.free), samples.name)
     free = list(problem.free)
@@ -210,7 +222,7 @@ def sample_posterior(
     table, result_or_model, *, nwalkers: int = DEFAULT_WALKERS, nsteps: int = DEFAULT_STEPS,
     burn: int = DEFAULT_BURN, thin: int = 1, seed: int = 0, noise=None,
     subsample=DEFAULT_SUBSAMPLE, prior=None, loss=None, cutoff=None, bounds=None,
-    fixed=None, init=None, chain_path=None, moves=None, progress=None,
+    fixed=None, init=None, chain_path=None, moves=None, progress=None, weighting=None,
 ) -> PosteriorResult:
     """Sample the posterior of a model's free parameters on ``table`` with emcee.
 
@@ -235,6 +247,9 @@ def sample_posterior(
         prior: name → ``(lo, hi)`` / ``Uniform`` / ``LogUniform`` / ``Normal`` (see
             :mod:`.priors`); default uniform within the physical bounds.
         loss, cutoff, bounds: as for :func:`brdffit.fit` (``loss`` defaults to the result's).
+        weighting: as for :func:`brdffit.fit`; default the result's (recorded in its
+            provenance), else ``"angles"``, so that the likelihood weights the cells as the
+            fit did.
         fixed, init: passed to the fit when a model is given (fixed scalars stay fixed).
         chain_path: also save the chain there as NPZ (:meth:`PosteriorResult.save_chain`).
         moves: emcee moves; default :func:`default_moves` (differential evolution).
@@ -251,15 +266,17 @@ def sample_posterior(
         with jax.enable_x64(True):
             return _sample(table, result_or_model, nwalkers, nsteps, burn, thin, seed, noise,
                            subsample, prior, loss, cutoff, bounds, fixed, init, chain_path,
-                           moves, callback)
+                           moves, callback, weighting)
     finally:
         if bar is not None:
             bar.close()
 
 
 def _sample(table, result_or_model, nwalkers, nsteps, burn, thin, seed, noise, subsample,
-            prior, loss, cutoff, bounds, fixed, init, chain_path, moves, progress):
+            prior, loss, cutoff, bounds, fixed, init, chain_path, moves, progress, weighting):
     samples = table.to_samples()
+    if weighting is None:
+        weighting = _weighting_of(result_or_model)
     if noise is None:
         noise = "measured" if getattr(samples, "sigma", None) is not None else "fixed"
     if noise == "measured" and getattr(samples, "sigma", None) is None:
@@ -268,18 +285,19 @@ def _sample(table, result_or_model, nwalkers, nsteps, burn, thin, seed, noise, s
             "column (or sigma_r, sigma_g, sigma_b); use noise='fixed' or 'sampled' otherwise"
         )
     fit_kwargs = {"cutoff": cutoff, "subsample": subsample, "seed": seed, "bounds": bounds,
-                  "fixed": fixed, "init": init}
+                  "fixed": fixed, "init": init, "weighting": weighting}
     result, t_fit = _least_squares(table, result_or_model, loss, fit_kwargs)
     post, sel, center, scale, noise_info = _posterior(
         result, samples, loss=loss, cutoff=cutoff, subsample=subsample, seed=seed,
-        bounds=bounds, noise=noise, prior=prior,
+        bounds=bounds, noise=noise, prior=prior, weighting=weighting,
     )
     _check_run(nwalkers, nsteps, burn, thin, len(center))
     sampler, t_compile, t_sample = _run_emcee(post, center, scale, int(nwalkers), int(nsteps), seed,
                                               default_moves() if moves is None else moves,
                                               progress)
     run = {"nwalkers": int(nwalkers), "nsteps": int(nsteps), "burn": int(burn), "thin": int(thin),
-           "seed": int(seed), "loss": loss, "cutoff": cutoff, "subsample": repr(subsample)}
+           "seed": int(seed), "loss": loss, "cutoff": cutoff, "subsample": repr(subsample),
+           "weighting": weighting}
     out = _assemble(result, post, sel, sampler, noise_info,
                     run, {"fit": t_fit, "compile": t_compile, "sample": t_sample})
     if chain_path is not None:
