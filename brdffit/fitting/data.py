@@ -15,11 +15,11 @@ Selection happens in two stages, so that every table of one layout compiles once
   (``SampleSet.weight``, :func:`measure_weight`) scaled to mean 1 over the cells used, so that
   the cost ``½Σ w r²`` approximates an integral over the angles and does not depend on how
   densely a layout samples them, while staying in the units of an average cell. A MERL
-  table's ``θh`` warp puts ``90/(2i+1)`` times the average density of cells in row ``i``: 90× at the peak, half at
-  ``θh = 90°``. Counting every cell once (``weighting="samples"``) lets the rows near the peak
-  decide the lobe's width; on 69 measured materials that made the ``beckmann`` roughness
-  systematically narrower than the published Cook–Torrance fits (``docs/design/fitting.md``
-  §10). Measurements with ``σ`` are χ² terms and are not reweighted.
+  table's ``θh`` warp puts ``90/(2i+1)`` times the average density of cells in row ``i``: 90×
+  at the peak, half at ``θh = 90°``. Counting every cell once (``weighting="samples"``) lets
+  the rows near the peak decide the lobe's width; on 69 measured materials that made the
+  ``beckmann`` roughness systematically narrower than the published Cook–Torrance fits
+  (``docs/design/fitting.md`` §10). Measurements with ``σ`` are χ² terms and are not reweighted.
 
 Burley 2012 §3.1/§4.7: data past about 75–80° is extrapolated in the MERL set; ``cutoff=80``
 drops it. The default keeps everything (the caller decides).
@@ -157,9 +157,7 @@ WEIGHTINGS = ("angles", "samples")
 def measure_weight(samples, rows, weighting: str = "angles"):
     """``(len(rows),)`` multipliers of the squared residuals of ``samples[rows]``, or ``None``
     for none: ``SampleSet.weight`` under ``weighting="angles"`` (where the layout gives one and
-    the samples carry no ``σ``), nothing under ``"samples"``."""
-    if weighting not in WEIGHTINGS:
-        raise UnknownNameError("weighting", str(weighting), list(WEIGHTINGS))
+    the samples carry no ``σ``), nothing under ``"samples"`` (checked by :func:`select`)."""
     weight = getattr(samples, "weight", None)
     if weighting == "samples" or weight is None or getattr(samples, "sigma", None) is not None:
         return None

@@ -4,8 +4,8 @@
 :func:`fit_options` merges a ``FitOptions`` (or a mapping of option names) with keyword
 arguments, the keywords winning option by option, and refuses unknown names, out-of-range
 numbers (:func:`brdffit.config.check_fit_options`, the one place the ranges live) and unknown
-``covariance``/``precision``/``weighting`` names before any work. :meth:`Settings.of` then resolves what is
-left: the loss by name, the precision and the tolerances that depend on it.
+``covariance``/``precision``/``weighting`` names before any work. :meth:`Settings.of` then
+resolves what is left: the loss by name, the precision and the tolerances that depend on it.
 """
 
 from __future__ import annotations
