@@ -5,6 +5,7 @@ from ``jax.jacfwd``, closed forms."""
 import dataclasses
 import json
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -588,3 +589,63 @@ def test_render_merl_fills_the_grid_with_the_fitted_model(small_fit, tmp_path):
     write_merl(tmp_path / "fit.binary", table)
     np.testing.assert_array_equal(read_merl(tmp_path / "fit.binary").rgb, table.rgb)
     assert model.name == res.model.name
+
+
+class _Round(eqx.Module):
+    """What the scripted solve of the trust-region hand-over test returns for one round."""
+
+    z: np.ndarray
+    steps: np.ndarray
+    cost: np.ndarray
+    step_size: np.ndarray
+    ran_out: bool = eqx.field(static=True)
+    finite: bool = eqx.field(static=True)
+
+
+def test_a_round_that_accepts_no_step_keeps_the_other_models_trust_region(monkeypatch):
+    """Rounds alternate between Newton's and Gauss–Newton's model. A Newton round whose every
+    trial point was rejected (a wrong second-order term) shrank the trust region on its own
+    model's account: the Gauss–Newton round after it starts from the region the failed round
+    started with, not from the shrunken one. A round that moved hands on its own region."""
+    from brdffit.fitting import stages
+    from brdffit.fitting.events import Events
+    from brdffit.fitting.solvers import make_solver
+
+    z_start = np.array([0.3, 0.4])
+    script = iter([  # (moved, step size at the round's end) of rounds 1, 2, 3 ...
+        (True, 50.0),   # Newton: moved, region 100 -> 50
+        (True, 7.0),    # Gauss-Newton: moved, 50 -> 7
+        (False, 1e-6),  # Newton: every trial rejected, 7 -> 1e-6
+        (True, 30.0),   # Gauss-Newton: must start from 7
+        (False, 2e-5),  # Newton: rejected again
+        (True, 40.0),   # Gauss-Newton: must start from 30
+    ])
+    seen = []
+
+    def scripted_solve(problem, solver, z0, data, floor, steps, active, second):
+        seen.append((float(solver.inner.search.initial_step_size), second is not None,
+                     np.asarray(z0).copy()))
+        moved, size = next(script)
+        z = np.asarray(z0) + (0.01 if moved else 0.0)
+        return _Round(z, np.asarray(steps), np.asarray(1.0), np.asarray(size), True, True)
+
+    monkeypatch.setattr(stages, "solve", scripted_solve)
+    monkeypatch.setattr(stages, "second_order", lambda *args: np.zeros((2, 2)))
+    problem = dataclasses.make_dataclass("P", [("chunks", int)])(chunks=4)
+    run = stages.Run(problem, None, 0.0, 6 * stages.ROUND_STEPS, Events())
+    out = run.solve(make_solver("lm", 1e-8, 1e-8), z_start, active=4, newton=True)
+
+    sizes = [size for size, _, _ in seen]
+    assert sizes == [100.0, 50.0, 7.0, 7.0, 30.0, 30.0]
+    assert [newton for _, newton, _ in seen] == [True, False] * 3
+    # The round after a rejected one starts where the rejected one did.
+    np.testing.assert_array_equal(seen[3][2], seen[2][2])
+    assert int(out.steps) == 6 * stages.ROUND_STEPS
+
+    # Gauss-Newton alone: a round without progress hands on its shrunken region (the same
+    # model would otherwise repeat the same rejections).
+    script = iter([(False, 1e-3), (True, 5.0)])
+    seen.clear()
+    run = stages.Run(problem, None, 0.0, 2 * stages.ROUND_STEPS, Events())
+    run.solve(make_solver("lm", 1e-8, 1e-8), z_start, active=4, newton=False)
+    assert [size for size, _, _ in seen] == [100.0, 1e-3]

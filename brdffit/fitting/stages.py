@@ -15,7 +15,8 @@ After the first stage the solver's quadratic model is Newton's, ``JᵀJ`` plus t
 term (:func:`.solve.second_order`), alternating with Gauss–Newton's model every
 ``ROUND_STEPS`` steps while the solve has not converged (:meth:`Run.solve`): on real materials
 the residual at the optimum is mostly model error and Gauss–Newton alone converges only
-linearly. Each stage also starts with the trust region the previous one ended with. The blocks
+linearly. Each stage, and each round, starts with the trust region the previous one ended with
+(except after a round on the other model that accepted no step: :meth:`Run.solve`). The blocks
 are interleaved (:func:`.data.select`), so every leading subset is an even sample of the
 table. Measurements and the history of these choices: ``docs/design/fitting.md``.
 """
@@ -105,8 +106,13 @@ class Run:
         one uses the other model, Gauss–Newton's or Newton's with the term measured afresh: a
         term measured far from the optimum, or on too few cells, can make a positive definite
         but wrong model whose steps crawl, and Gauss–Newton alone converges only linearly.
-        Every round of the default step limit has the same length, so one compiled program
-        serves them all.
+
+        A round that accepted no step (every trial point raised the cost) shrank the trust
+        region on its own model's account; the next round, on the other model, starts from the
+        region the failed round started with. Otherwise a wrong Newton model leaves
+        Gauss–Newton a region shrunk ×0.25 per rejection each time, and the two crawl by turns
+        until the step limit (``docs/design/fitting.md`` §11). Every round of the default step
+        limit has the same length, so one compiled program serves them all.
         """
         chunks = self.problem.chunks
         floor = self.floor if active == chunks else self.floor * active / chunks
@@ -119,7 +125,9 @@ class Run:
             total += int(out.steps)
             if not (out.ran_out and out.finite):
                 break
-            z0, solver = out.z, with_initial_step(solver, float(out.step_size))
+            moved = not np.array_equal(np.asarray(out.z), np.asarray(z0))
+            if moved or not newton:
+                z0, solver = out.z, with_initial_step(solver, float(out.step_size))
             model = newton and not model  # a round that ran out: the other model next
         return eqx.tree_at(lambda s: s.steps, out, np.asarray(total))
 
