@@ -1,7 +1,7 @@
 """Benchmark: fits of every MERL-identifiable model to realistic materials (run by hand).
 
     .venv/bin/python benchmarks/bench_realistic.py [--models ggx,beckmann,...]
-        [--materials N | --names a,b] [--scipy N] [--csv out.csv]
+        [--materials N | --names a,b] [--scipy N] [--csv out.csv] [--cache DIR]
 
 The materials are the neural proxies of 80 real MERL measurements in ``../shared/realistic``
 (Sztrajman et al. 2021; see its README), rendered into full 90×90×180 tables in memory (never
@@ -70,8 +70,17 @@ def load_render():
     return render
 
 
-def table_of(render, name: str) -> MERLTable:
-    rgb = render.merl_table(name)  # (3, 90, 90, 180), -1 below the horizon
+def table_of(render, name: str, cache: Path | None = None) -> MERLTable:
+    """The full table of material ``name``, rendered (4 s) or read from ``cache`` (``.npy``
+    files of the rendered values, written there on the first render)."""
+    path = None if cache is None else cache / f"{name}.npy"
+    if path is not None and path.exists():
+        rgb = np.load(path)
+    else:
+        rgb = render.merl_table(name)  # (3, 90, 90, 180), -1 below the horizon
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            np.save(path, rgb)
     valid = np.all(rgb >= 0, axis=0)
     return MERLTable.from_rgb(np.moveaxis(np.maximum(rgb, 0.0), 0, -1), valid, name=name)
 
@@ -150,6 +159,8 @@ def main():
     ap.add_argument("--names", default=None, help="comma-separated material names instead")
     ap.add_argument("--scipy", type=int, default=10, help="materials for the scipy reference")
     ap.add_argument("--csv", default=None, help="write the per-fit rows here")
+    ap.add_argument("--cache", type=Path, default=None,
+                    help="keep the rendered tables here (.npy, 35 MB each) for later runs")
     args = ap.parse_args()
     render = load_render()
     names = args.names.split(",") if args.names else render.names()[: args.materials]
@@ -158,7 +169,7 @@ def main():
     rows, ref = [], []
     t_all = time.perf_counter()
     for i, name in enumerate(names):
-        table = table_of(render, name)
+        table = table_of(render, name, args.cache)
         for model in models:
             row = fit_row(table, model)
             rows.append(row)
