@@ -4,6 +4,7 @@ from ``jax.jacfwd``, closed forms."""
 
 import dataclasses
 import json
+import warnings
 
 import equinox as eqx
 import jax
@@ -418,6 +419,37 @@ def test_select_interleaves_blocks_in_block_order():
     rows = np.rint(np.asarray(sel.data.rgb)[:, 0] * 1e6).astype(int).reshape(5, -1)
     for b, k in enumerate(block_order(5)):
         np.testing.assert_array_equal(rows[b], np.arange(k, n, 5))
+
+
+def test_tables_of_one_layout_share_their_selected_directions():
+    """Every MERL table of a grid has the same (read-only, cached) cell directions, so the rows
+    and the laid-out directions of the last selection are reused: the next table of the layout
+    gives exactly the data a fresh selection gives, the directions are the same device arrays,
+    and other options, another grid, or writable directions are selected anew."""
+    from brdffit.fitting import data as fit_data
+    from data_formats.merl import synthesize
+
+    shape = (16, 16, 32)  # 8,192 cells: two blocks
+    a = synthesize(lambda wi, wo: 0.1 + wi[..., 2:] * wo[..., 2:], shape=shape)
+    b = synthesize(lambda wi, wo: 0.3 + 0.0 * wi, shape=shape)
+    loss = get_loss("log")
+    first, second = select(a.to_samples(), loss), select(b.to_samples(), loss)
+    assert second.data.wi is first.data.wi and second.data.wo is first.data.wo
+    fit_data._LAST_DIRECTIONS.clear()
+    fresh = select(b.to_samples(), loss)
+    assert fresh.data.wi is not first.data.wi
+    for got, want in zip(jax.tree.leaves(second.data), jax.tree.leaves(fresh.data)):
+        np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
+    np.testing.assert_array_equal(second.index, fresh.index)
+    assert select(b.to_samples(), loss, cutoff=60).data.wi is not fresh.data.wi
+    assert select(b.to_samples(), loss, subsample=500).data.wi.shape[0] == 500
+    with jax.enable_x64(False), warnings.catch_warnings():  # the dtype JAX makes is in the key
+        warnings.simplefilter("ignore", UserWarning)  # "float64 ... truncated to float32"
+        assert select(b.to_samples(), loss).data.wi.dtype == np.float32
+    s = b.to_samples()
+    writable = dataclasses.replace(s, wi=np.array(s.wi), wo=np.array(s.wo))
+    once, twice = select(writable, loss), select(writable, loss)
+    assert once.data.wi is not twice.data.wi  # a sample list's directions can change in place
 
 
 def test_select_weights_each_residual_by_its_samples_share_of_the_angles():

@@ -170,19 +170,9 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
     ``weighting`` (:data:`WEIGHTINGS`)."""
     if weighting not in WEIGHTINGS:  # before any work
         raise UnknownNameError("weighting", str(weighting), list(WEIGHTINGS))
-    wi, wo = np.asarray(samples.wi, float), np.asarray(samples.wo, float)
-    rows = _static_rows(wi, wo, cutoff)
-    n_usable = len(rows)
-    sub = as_subsample(subsample)
-    if sub is not None and n_usable:
-        h = wi[rows] + wo[rows]
-        theta_h = np.arccos(np.clip(h[:, 2] / np.linalg.norm(h, axis=1), -1, 1))
-        rows = rows[sub.choose(theta_h, np.random.default_rng(seed))]
-    chunks, pad = _blocks(len(rows))
-    n, k = len(rows) + pad, len(rows)
-    # ascending rows: a sequential gather, 5x faster than gathering in the interleaved order
-    up = (0.0, 0.0, 1.0)  # padding cells: normal incidence, zero weight
-    wi, wo = _gather(wi, rows, n, up, "float64"), _gather(wo, rows, n, up, "float64")
+    dirs = _directions(samples, cutoff, as_subsample(subsample), seed, dtype)
+    rows, chunks, wi, wo = dirs.rows, dirs.chunks, dirs.wi, dirs.wo
+    n, k = len(wi), len(rows)
     rgb = _gather(np.asarray(samples.rgb, float), rows, n, 0.0, "float64")
     good = np.zeros(n, bool)
     good[:k] = np.asarray(samples.valid, bool)[rows]
@@ -203,10 +193,85 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
             raise ConfigError("every usable sample has weight 0 (SampleSet.weight); give the "
                               "samples positive weights or fit with weighting='samples'")
         sw[:k] *= np.sqrt(measure / mean)[:, None]
-    arrays = [jnp.asarray(a) for a in (wi, wo, rgb, sw)]  # explicit transfers are the fast path
-    data = _device(*arrays, loss=loss, chunks=chunks, dtype=dtype)
+    arrays = [jnp.asarray(a) for a in (rgb, sw)]  # explicit transfers are the fast path
+    rgb_d, target, sw_d = _values(dirs.wi_device, dirs.wo_device, *arrays, loss=loss,
+                                  chunks=chunks, dtype=dtype)
+    data = FitData(dirs.wi_device, dirs.wo_device, rgb_d, target, sw_d)
     host = (wi[:k], wo[:k], rgb[:k], good[:k])
-    return Selection(data, rows, len(samples.wi), n_usable, int(np.count_nonzero(good)), chunks, host)
+    return Selection(data, rows, len(samples.wi), dirs.n_usable, int(np.count_nonzero(good)),
+                     chunks, host)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Directions:
+    """The selected rows of a sample set and their directions: ``wi``, ``wo`` on the host
+    (ascending, padded to whole blocks with normal incidence) and on the device (interleaved,
+    :func:`_interleave`, in the compute dtype). ``pins`` keeps the source arrays alive while
+    the entry is cached (their identity is its key)."""
+
+    rows: np.ndarray
+    n_usable: int
+    chunks: int
+    wi: np.ndarray
+    wo: np.ndarray
+    wi_device: jax.Array
+    wo_device: jax.Array
+    pins: tuple
+
+
+#: The last selection's :class:`_Directions`, by what determines them (:func:`_directions`).
+_LAST_DIRECTIONS: dict = {}
+
+
+def _frozen_identity(a: np.ndarray):
+    """A key for the contents of ``a`` that holds while ``a``'s owner is alive: ``a`` and the
+    array that owns its memory are read-only (a MERL grid's cached cell directions,
+    :func:`data_formats.merl.cell_directions`). ``(None, None)`` for any other array."""
+    owner = a
+    while isinstance(owner.base, np.ndarray):
+        owner = owner.base
+    if a.flags.writeable or owner.flags.writeable:
+        return None, None
+    return (id(owner), a.__array_interface__["data"][0], a.shape, a.strides, a.dtype.str), owner
+
+
+def _directions(samples, cutoff, sub: Subsample | None, seed: int, dtype: str) -> _Directions:
+    """The rows of ``samples`` that :func:`select` keeps (above the horizon, within ``cutoff``,
+    the ``subsample`` drawn with ``seed``) and their directions, host and device.
+
+    They depend on the directions alone, and every MERL table of a layout has the same ones
+    (read-only views of one cached grid): the last result is kept for read-only directions,
+    so fitting table after table (a batch, a benchmark, several models) gathers, transfers
+    and interleaves only the values. Writable directions (a sample list) are always computed.
+    """
+    wi, wo = np.asarray(samples.wi, float), np.asarray(samples.wo, float)
+    (kwi, pin_i), (kwo, pin_o) = _frozen_identity(wi), _frozen_identity(wo)
+    # the dtype as JAX makes it now (float32 for "float64" without x64)
+    made = jax.dtypes.canonicalize_dtype(np.dtype(dtype))
+    key = None if kwi is None or kwo is None else (kwi, kwo, cutoff, sub, int(seed), str(made),
+                                                   chunk_cells())
+    cached = None if key is None else _LAST_DIRECTIONS.get(key)
+    if cached is not None:
+        return cached
+    rows = _static_rows(wi, wo, cutoff)
+    n_usable = len(rows)
+    if sub is not None and n_usable:
+        h = wi[rows] + wo[rows]
+        theta_h = np.arccos(np.clip(h[:, 2] / np.linalg.norm(h, axis=1), -1, 1))
+        rows = rows[sub.choose(theta_h, np.random.default_rng(seed))]
+    chunks, pad = _blocks(len(rows))
+    n = len(rows) + pad
+    # ascending rows: a sequential gather, 5x faster than gathering in the interleaved order
+    up = (0.0, 0.0, 1.0)  # padding cells: normal incidence, zero weight
+    wi_h, wo_h = _gather(wi, rows, n, up, "float64"), _gather(wo, rows, n, up, "float64")
+    for a in (rows, wi_h, wo_h):
+        a.flags.writeable = False
+    wi_d, wo_d = (_interleave(jnp.asarray(a), chunks=chunks, dtype=dtype) for a in (wi_h, wo_h))
+    out = _Directions(rows, n_usable, chunks, wi_h, wo_h, wi_d, wo_d, (pin_i, pin_o))
+    if key is not None:
+        _LAST_DIRECTIONS.clear()
+        _LAST_DIRECTIONS[key] = out
+    return out
 
 
 def sigma_weight(loss: Loss, rho, sigma, cos_i, cos_o) -> np.ndarray:
@@ -232,9 +297,8 @@ def sigma_weight(loss: Loss, rho, sigma, cos_i, cos_o) -> np.ndarray:
     return np.where(ok, 1.0 / np.where(ok, sigma_g, 1.0), 0.0)
 
 
-@functools.partial(jax.jit, static_argnames=("loss", "chunks", "dtype"))
-def _device(wi, wo, rgb, sw, *, loss: Loss, chunks: int, dtype: str) -> FitData:
-    """Cast, interleave, and store ``g(ρ)``: one program per table layout and loss.
+def _layout(a, chunks: int, dtype: str):
+    """``a`` cast to ``dtype`` and its rows interleaved into ``chunks`` blocks.
 
     Interleaving: block ``b`` holds the rows ``k, k + chunks, k + 2 chunks, ...`` of the
     (ascending, padded) selection, in the MERL layout's ``θh``-major order, with the offset
@@ -243,19 +307,24 @@ def _device(wi, wo, rgb, sw, *, loss: Loss, chunks: int, dtype: str) -> FitData:
     :mod:`brdffit.fitting.stages` fit first. The padding cells (zero weight) are the last rows
     before interleaving; a single block keeps the order.
     """
+    a = a.astype(dtype)
+    if chunks == 1:
+        return a
+    blocks = a.reshape((-1, chunks) + a.shape[1:]).swapaxes(0, 1)
+    return blocks[block_order(chunks)].reshape(a.shape)
 
-    order = block_order(chunks)
 
-    def layout(a):
-        a = a.astype(dtype)
-        if chunks == 1:
-            return a
-        blocks = a.reshape((-1, chunks) + a.shape[1:]).swapaxes(0, 1)
-        return blocks[order].reshape(a.shape)
+_interleave = jax.jit(_layout, static_argnames=("chunks", "dtype"))
 
-    wi, wo, rgb, sw = layout(wi), layout(wo), layout(rgb), layout(sw)
+
+@functools.partial(jax.jit, static_argnames=("loss", "chunks", "dtype"))
+def _values(wi, wo, rgb, sw, *, loss: Loss, chunks: int, dtype: str):
+    """``(rgb, g(rgb), sw)`` of :class:`FitData`: the values ``rgb`` and weights ``sw`` (host
+    order, padded) laid out as the directions ``wi``, ``wo`` already are (:func:`_layout`),
+    and the loss's transform of the values. One program per table layout and loss."""
+    rgb, sw = _layout(rgb, chunks, dtype), _layout(sw, chunks, dtype)
     target = jnp.where(sw > 0, loss.transform(rgb, wi[:, 2:3], wo[:, 2:3]), 0.0)
-    return FitData(wi, wo, rgb, target, sw)
+    return rgb, target, sw
 
 
 def block_order(chunks: int) -> np.ndarray:
