@@ -681,3 +681,29 @@ def test_a_round_that_accepts_no_step_keeps_the_other_models_trust_region(monkey
     run = stages.Run(problem, None, 0.0, 2 * stages.ROUND_STEPS, Events())
     run.solve(make_solver("lm", 1e-8, 1e-8), z_start, active=4, newton=False)
     assert [size for size, _, _ in seen] == [100.0, 1e-3]
+
+
+def test_the_scan_shifts_the_lobe_widths_only():
+    """``mitsuba-principled`` fits ``base_color`` in log space (its tint is steep near the
+    bound) but the start scan shifts only the lobe width ``roughness``, ×8 and ÷8 within its
+    box; ``ggx`` scans ``alpha``. A scanned parameter must be log-scaled."""
+    from brdffit.fitting import stages
+    from brdffit.fitting.parameters import free_scalars
+    from brdffit.models.registry import Param
+
+    model = brdffit.get_model("mitsuba-principled")
+    assert model.param("base_color").log and not model.param("base_color").scanned
+    assert model.param("roughness").scanned
+    scalars, x0 = free_scalars(model, None, None)
+    prob = Problem.build(scalars, get_loss("log"), x0, "float64", 1)
+    z0 = scalars.to_box(x0)
+    base, low, high = stages.candidates(prob, z0)
+    moved = np.flatnonzero(np.abs(low - base) > 0)
+    assert len(moved) == 1  # roughness alone
+    i = moved[0]
+    x = lambda z: prob.flat_host(z)[list(prob.free)][i]
+    np.testing.assert_allclose([x(low), x(high)], [x(base) / 8, min(x(base) * 8, 1.0)],
+                               rtol=1e-12)  # clamped to the box
+    assert np.sum(stages.scanned(_problem("ggx", (0, 1, 2, 3, 4, 5, 6, 7), {}))) == 1
+    with pytest.raises(ValueError, match="only a log-scaled parameter"):
+        Param("w", (), 0.0, 1.0, 0.5, "a width", scan=True)

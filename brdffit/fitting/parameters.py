@@ -18,6 +18,11 @@ def flat_log(model) -> np.ndarray:
     return np.concatenate([np.full(p.size, bool(p.log)) for p in model.params])
 
 
+def flat_scanned(model) -> np.ndarray:
+    """Per flat scalar, whether the start scan shifts it (:attr:`Param.scanned`)."""
+    return np.concatenate([np.full(p.size, p.scanned) for p in model.params])
+
+
 def _slots(model, key: str) -> tuple[str, list[int]]:
     """Parameter name and flat indices named by ``key`` (``"f0"`` or ``"f0[1]"``)."""
     names = model.flat_names()

@@ -30,6 +30,7 @@ import numpy as np
 
 from .data import FitData
 from .events import Events
+from .parameters import flat_scanned
 from .problem import Problem
 from .solve import Solved, cost_floor, second_order, solve
 from .solvers import with_ftol, with_initial_step
@@ -61,11 +62,17 @@ def starts(z0: np.ndarray, multistart: int, seed: int) -> list[np.ndarray]:
     ]
 
 
+def scanned(problem: Problem) -> np.ndarray:
+    """Per free scalar of ``problem``, whether the scan shifts it (a lobe width,
+    :attr:`~brdffit.models.registry.Param.scanned`; always log-scaled)."""
+    return flat_scanned(problem.model)[list(problem.free)]
+
+
 def candidates(problem: Problem, z0: np.ndarray) -> list[np.ndarray]:
-    """``z0`` and two copies with every free log-scaled parameter (a lobe width) divided and
+    """``z0`` and two copies with every free lobe width (:func:`scanned`) divided and
     multiplied by ``SCAN_FACTOR`` (a shift of ``log(SCAN_FACTOR)`` over the parameter's log
     range in box units, clamped to the box); only ``z0`` if the model has none free."""
-    log = np.asarray(problem.log, bool)
+    log = scanned(problem)
     if not np.any(log):
         return [z0]
     span = np.asarray(problem.shi, float) - np.asarray(problem.slo, float)
@@ -161,7 +168,7 @@ class Run:
         self.events.start = k
         chunks = self.problem.chunks
         block_cells = self.data.wi.shape[0] // chunks
-        stages = plan(chunks, block_cells, scan and any(self.problem.log))  # a lobe width to shift
+        stages = plan(chunks, block_cells, scan and bool(np.any(scanned(self.problem))))
         for i, (name, active) in enumerate(stages):
             newton = i > 0  # Newton's model from the second stage on
             if name == "scan":

@@ -166,8 +166,12 @@ def _unit(name, default, description):
 
 
 PRINCIPLED_PARAMS = (
+    # log-scaled, not scanned: the tint base_color / lum(base_color) has a derivative of
+    # ~1/lum, 1e5-1e6 near the bound, where a linear box coordinate let the quadratic model
+    # hold over steps of ~1e-6 only (black-obsidian, special-walnut-224: 200 steps);
+    # in log base_color that derivative is base_color / lum = O(1)
     Param("base_color", (3,), BASE_COLOR_MIN, 1.0, 0.5,
-          "surface color, linear RGB (Mitsuba base_color)"),
+          "surface color, linear RGB (Mitsuba base_color)", log=True, scan=False),
     Param("roughness", (), 0.032, 1.0, 0.5, "roughness; α = roughness² ≥ 0.001 (Mitsuba roughness)",
           log=True),
     _unit("anisotropic", 0.0, "anisotropy, aspect = sqrt(1 − 0.9 anisotropic)"),

@@ -28,7 +28,13 @@ class Param:
         lower, upper: physical bounds, applied to every component.
         default: starting value (scalar broadcasts over the shape).
         description: one line for humans.
-        log: the parameter spans decades (roughness): fitted in log space.
+        log: fitted in log space: the parameter spans decades (a roughness), or the model is
+            far more curved in it near the lower bound than far from it (a colour that a
+            tint divides by its luminance).
+        scan: the start scan (:func:`brdffit.fitting.stages.candidates`) tries it ×8 and ÷8:
+            a lobe width, whose optimum can lie in another basin. ``None`` (the default)
+            means ``log``; ``False`` for a log-scaled parameter that is no width. Only a
+            log-scaled parameter can be scanned.
         per_channel: an RGB parameter whose component ``c`` changes channel ``c`` of ``f_r``
             only (a Lambertian albedo, a Schlick ``F0``), for every value of every parameter.
             The fitter then differentiates all three components with one forward-mode product
@@ -46,6 +52,16 @@ class Param:
     description: str
     log: bool = False
     per_channel: bool = False
+    scan: bool | None = None
+
+    def __post_init__(self):
+        if self.scan and not self.log:
+            raise ValueError(f"Param {self.name!r}: only a log-scaled parameter can be scanned")
+
+    @property
+    def scanned(self) -> bool:
+        """Whether the start scan shifts this parameter (``scan``, by default ``log``)."""
+        return self.log if self.scan is None else bool(self.scan)
 
     @property
     def size(self) -> int:
