@@ -72,11 +72,11 @@ def candidates(problem: Problem, z0: np.ndarray) -> list[np.ndarray]:
     """``z0`` and two copies with every free lobe width (:func:`scanned`) divided and
     multiplied by ``SCAN_FACTOR`` (a shift of ``log(SCAN_FACTOR)`` over the parameter's log
     range in box units, clamped to the box); only ``z0`` if the model has none free."""
-    log = scanned(problem)
-    if not np.any(log):
+    width = scanned(problem)
+    if not np.any(width):
         return [z0]
     span = np.asarray(problem.shi, float) - np.asarray(problem.slo, float)
-    shift = np.where(log, np.log(SCAN_FACTOR) / np.where(log, span, 1.0), 0.0)
+    shift = np.where(width, np.log(SCAN_FACTOR) / np.where(width, span, 1.0), 0.0)
     return [z0] + [np.clip(z0 + sign * shift, 0.0, 1.0) for sign in (-1.0, 1.0)]
 
 
