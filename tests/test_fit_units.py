@@ -10,6 +10,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 import pytest
 
 import brdffit
@@ -624,7 +625,8 @@ def test_render_merl_fills_the_grid_with_the_fitted_model(small_fit, tmp_path):
 
 
 class _Round(eqx.Module):
-    """What the scripted solve of the trust-region hand-over test returns for one round."""
+    """What the scripted solves of the round tests return for one round (``JᵀJ`` large by
+    default: a move of 0.01 changes the predictions far more than ``ftol`` of the cost)."""
 
     z: np.ndarray
     steps: np.ndarray
@@ -632,6 +634,8 @@ class _Round(eqx.Module):
     step_size: np.ndarray
     ran_out: bool = eqx.field(static=True)
     finite: bool = eqx.field(static=True)
+    jtj: np.ndarray = eqx.field(default_factory=lambda: np.eye(2) * 1e6)
+    still: bool = False
 
 
 def test_a_round_that_accepts_no_step_keeps_the_other_models_trust_region(monkeypatch):
@@ -681,6 +685,65 @@ def test_a_round_that_accepts_no_step_keeps_the_other_models_trust_region(monkey
     run = stages.Run(problem, None, 0.0, 2 * stages.ROUND_STEPS, Events())
     run.solve(make_solver("lm", 1e-8, 1e-8), z_start, active=4, newton=False)
     assert [size for size, _, _ in seen] == [100.0, 1e-3]
+
+
+def test_rounds_that_leave_the_fit_where_it_was_end_the_solve_converged(monkeypatch):
+    """A solve whose rounds run out of steps ends, converged, after two rounds in a row that
+    each accepted steps but changed the cost and the predictions (``½ ΔzᵀJᵀJΔz``) by less
+    than ``ftol`` of the cost; the first round (no cost at its start), a round that moved the
+    cost or the predictions, and a round that accepted no step each restart the count. The
+    verdict is success with status ``still`` and the optimality ω in its message."""
+    from brdffit.fitting import outcome, stages
+    from brdffit.fitting.events import Events
+    from brdffit.fitting.solvers import make_solver
+
+    F, tiny = 1000.0, 1e-9 * 1000.0 / 10  # a tenth of ftol's share of the cost
+    script = iter([  # (dz, cost at the round's end, JᵀJ scale)
+        (1e-3, F, 1.0),         # 1: the first round never counts
+        (1e-3, F, 1.0),         # 2: calm (½ dz² · 2 = 1e-6 = 1e-9 F)
+        (1e-3, F - 1e-4, 1.0),  # 3: the cost moved by 1e-7 F: not calm
+        (1e-3, F - 1e-4, 1e4),  # 4: the predictions moved: not calm
+        (0.0, F - 1e-4, 1.0),   # 5: no step accepted: not calm
+        (1e-3, F - 1e-4 - tiny, 1.0),  # 6: calm
+        (1e-3, F - 1e-4 - 2 * tiny, 1.0),  # 7: calm again: converged
+        (1e-3, F, 1.0),
+    ])
+    rounds = []
+
+    def scripted_solve(problem, solver, z0, data, floor, steps, active, second):
+        dz, cost, scale = next(script)
+        rounds.append(dz)
+        z = np.asarray(z0) + np.array([dz, 0.0])
+        return _Round(z, np.asarray(steps), np.asarray(cost), np.asarray(1.0), True, True,
+                      jtj=np.eye(2) * scale)
+
+    monkeypatch.setattr(stages, "solve", scripted_solve)
+    monkeypatch.setattr(stages, "second_order", lambda *args: np.zeros((2, 2)))
+    problem = dataclasses.make_dataclass("P", [("chunks", int)])(chunks=4)
+    run = stages.Run(problem, None, 0.0, 20 * stages.ROUND_STEPS, Events())
+    out = run.solve(make_solver("lm", 1e-8, 1e-8, ftol=1e-9), np.array([0.3, 0.4]), active=4,
+                    newton=True)
+    assert len(rounds) == 7 and out.still and int(out.steps) == 7 * stages.ROUND_STEPS
+
+    # the stillness test itself, in the units of the data
+    end = _Round(np.array([0.301, 0.4]), np.asarray(10), np.asarray(F), np.asarray(1.0), True,
+                 True, jtj=np.eye(2))
+    z0 = np.array([0.3, 0.4])
+    assert stages.still(z0, F, end, 0.0, 1e-9)
+    assert not stages.still(z0, F * (1 + 2e-9), end, 0.0, 1e-9)  # the cost fell by 2e-9 F
+    assert not stages.still(z0 - 1e-3, F, end, 0.0, 1e-9)  # ½ · 4e-6 > 1e-9 F
+    assert stages.still(z0 - 1e-3, F, end, 3 * F, 1e-9)  # the floor counts in F
+
+    # a solve that ran out of steps, marked still: success, status "still", ω reported
+    from brdffit.fitting.solve import Solved
+
+    marked = Solved(z=z0, result=optx.RESULTS.nonlinear_max_steps_reached, steps=np.asarray(70),
+                    cost=np.asarray(F), omega=np.asarray(3e-7), jtj=np.eye(2), meat=np.eye(2),
+                    dxdz=np.ones(2), metrics={}, m=np.asarray(100), step_size=np.asarray(1.0),
+                    still=True)
+    v = outcome.verdict(marked, 1e-9)
+    assert v.success and v.status == "still" and "stillness test" in v.message and "3e-07" in v.message
+    assert marked.converged(1e-9) and not eqx.tree_at(lambda s: s.still, marked, False).converged(1e-9)
 
 
 def test_the_scan_shifts_the_lobe_widths_only():

@@ -61,14 +61,22 @@ def result_name(result) -> str:
 
 
 def verdict(best: Solved, ftol: float) -> Verdict:
-    """Success only where optimistix succeeded at a finite point, the optimality test
-    ``ω ≤ ftol`` holds, and the cost depends on some free parameter there."""
+    """Success only at a finite point where the cost depends on some free parameter, and
+    either optimistix succeeded and the optimality test ``ω ≤ ftol`` holds, or the stillness
+    test ended the solve (status ``still``: :func:`.stages.still`, with ``ω`` in the
+    message)."""
     if not best.finite:
         return Verdict(False, "nonfinite", (
             "the solver produced non-finite parameters or cost; the result reports the starting "
             "point. Try another `init`, `multistart`, or the `log` loss."
         ))
     status = result_name(best.result)
+    if best.still:
+        return _if_identified(best, Verdict(True, "still", (
+            f"converged by the stillness test: the last two rounds of steps changed the cost "
+            f"and the predictions by less than ftol = {ftol:g} of the cost, while the local "
+            f"quadratic model still promised a fraction {float(best.omega):.2g}"
+        )))
     if not best.successful:
         message = optx.RESULTS[best.result]
         if status in ("nonlinear_max_steps_reached", "max_steps_reached"):
@@ -81,12 +89,17 @@ def verdict(best: Solved, ftol: float) -> Verdict:
             f"would still lower the cost by a fraction {omega:.2g} > ftol = {ftol:g}); try "
             f"another `init`, `multistart`, or a looser `ftol`."
         ))
+    return _if_identified(best, Verdict(True, status, ""))
+
+
+def _if_identified(best: Solved, success: Verdict) -> Verdict:
+    """``success``, unless the cost depends on no free parameter at the end point."""
     if not np.any(np.diagonal(np.asarray(best.jtj, float)) > 0):
         return Verdict(False, "degenerate", (
             "the cost does not depend on any free parameter at the end point (JᵀJ is zero): "
             "the data determine nothing here; check the data's scale and the `loss`."
         ))
-    return Verdict(True, status, "")
+    return success
 
 
 def _by_param(model, flat):

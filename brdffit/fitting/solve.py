@@ -53,6 +53,9 @@ class Solved(eqx.Module):
         metrics: the error figures (:func:`.statistics.metrics_from`).
         m: the number of residuals with non-zero weight.
         step_size: the trust region's last step size (NaN for a solver without one).
+        still: the solve ended on the stillness test (:meth:`.stages.Run.solve`): rounds of
+            steps on both quadratic models in turn moved neither the cost nor the predictions
+            by more than ``ftol`` of the cost; set on the host, ``False`` from the solver.
     """
 
     z: jax.Array
@@ -66,6 +69,7 @@ class Solved(eqx.Module):
     metrics: dict
     m: jax.Array
     step_size: jax.Array
+    still: bool = False
 
     @property
     def successful(self) -> bool:
@@ -88,9 +92,11 @@ class Solved(eqx.Module):
         return cost if np.isfinite(cost) else np.inf
 
     def converged(self, ftol: float) -> bool:
-        """optimistix succeeded at a finite point where the optimality test ``ω ≤ ftol``
-        holds."""
-        return self.successful and self.finite and float(self.omega) <= ftol
+        """A finite point where optimistix succeeded and the optimality test ``ω ≤ ftol``
+        holds, or where the stillness test ended the solve (:attr:`still`)."""
+        if not self.finite:
+            return False
+        return bool(self.still) or (self.successful and float(self.omega) <= ftol)
 
     def better_than(self, other: Solved, ftol: float) -> bool:
         """A converged solve is better than one that did not converge; between two of the same

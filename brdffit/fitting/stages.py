@@ -51,6 +51,27 @@ SCAN_FTOL = 1e-4
 SCAN_FACTOR = 8.0
 #: Solves run in rounds of at most this many steps (:meth:`Run.solve`).
 ROUND_STEPS = 10
+#: A solve ends, converged, after this many rounds in a row that ran out of steps and left the
+#: fit where it was (:func:`still`); with Newton's model, one round on each quadratic model.
+STILL_ROUNDS = 2
+
+
+def still(z0, cost0: float, out: Solved, floor: float, ftol: float) -> bool:
+    r"""Whether a round from ``z0`` (cost ``cost0``) to ``out`` left the fit where it was, in
+    the units of the data: with ``F`` the end point's cost plus the cost floor, the cost moved
+    by at most ``ftol · F``,
+
+    .. math:: |F_0 - F| \le \mathrm{ftol}\,F, \qquad
+              \tfrac12\,\Delta z^\top J^\top J\,\Delta z \le \mathrm{ftol}\,F,
+
+    and so did the predictions: ``½ ΔzᵀJᵀJΔz ≈ ½ ‖ρ̂(z) − ρ̂(z₀)‖²`` in the residual's units
+    (``JᵀJ`` at the end point), the test of a step in the units of the data. A round of
+    ``ROUND_STEPS`` steps, not one step: a single short step of a shrinking trust region moves
+    nothing and proves nothing."""
+    dz = np.asarray(out.z, float) - np.asarray(z0, float)
+    cost = float(out.cost) + floor
+    moved = 0.5 * dz @ np.asarray(out.jtj, float) @ dz
+    return bool(abs(cost0 + floor - cost) <= ftol * cost and moved <= ftol * cost)
 
 
 def starts(z0: np.ndarray, multistart: int, seed: int) -> list[np.ndarray]:
@@ -120,11 +141,18 @@ class Run:
         Gauss–Newton a region shrunk ×0.25 per rejection each time, and the two crawl by turns
         until the step limit (``docs/design/fitting.md`` §11). Every round of the default step
         limit has the same length, so one compiled program serves them all.
+
+        The solve also ends, converged, when ``STILL_ROUNDS`` rounds in a row that ran out of
+        steps each accepted steps and left the fit where it was (:func:`still`): the quadratic
+        models still promise a decrease (``ω > ftol``) that no step they propose finds, and the
+        answer no longer changes in the units of the data (a shallow curved valley of a model
+        that does not fit the table, ``docs/design/fitting.md`` §12).
         """
         chunks = self.problem.chunks
         floor = self.floor if active == chunks else self.floor * active / chunks
         self.events.floor = float(floor)
-        total, out, model = 0, None, newton
+        ftol = float(solver.ftol)
+        total, out, model, quiet, cost0 = 0, None, newton, 0, None
         while total < self.max_steps:
             steps = min(ROUND_STEPS, self.max_steps - total)
             second = second_order(self.problem, z0, self.data, active) if model else None
@@ -133,6 +161,13 @@ class Run:
             if not (out.ran_out and out.finite):
                 break
             moved = not np.array_equal(np.asarray(out.z), np.asarray(z0))
+            calm = moved and cost0 is not None and still(z0, cost0, out, float(floor), ftol)
+            quiet = quiet + 1 if calm else 0
+            if quiet >= STILL_ROUNDS:
+                out = eqx.tree_at(lambda s: s.still, out, True)
+                break
+            if moved:
+                cost0 = float(out.cost)
             if moved or not newton:
                 z0, solver = out.z, with_initial_step(solver, float(out.step_size))
             model = newton and not model  # a round that ran out: the other model next
