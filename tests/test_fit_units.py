@@ -689,23 +689,25 @@ def test_a_round_that_accepts_no_step_keeps_the_other_models_trust_region(monkey
 
 def test_rounds_that_leave_the_fit_where_it_was_end_the_solve_converged(monkeypatch):
     """A solve whose rounds run out of steps ends, converged, after two rounds in a row that
-    each accepted steps but changed the cost and the predictions (``½ ΔzᵀJᵀJΔz``) by less
-    than ``ftol`` of the cost; the first round (no cost at its start), a round that moved the
-    cost or the predictions, and a round that accepted no step each restart the count. The
-    verdict is success with status ``still`` and the optimality ω in its message."""
+    each accepted steps but lowered the cost by less than ``STILL_RATE · ftol`` of itself per
+    step and moved the predictions (``½ ΔzᵀJᵀJΔz``) by less than ``ftol`` of the cost; the
+    first round (no cost at its start), a round that moved the cost or the predictions, and a
+    round that accepted no step each restart the count. The verdict is success with status
+    ``still`` and the optimality ω in its message."""
     from brdffit.fitting import outcome, stages
     from brdffit.fitting.events import Events
     from brdffit.fitting.solvers import make_solver
 
-    F, tiny = 1000.0, 1e-9 * 1000.0 / 10  # a tenth of ftol's share of the cost
+    F, n = 1000.0, stages.ROUND_STEPS
+    allowed = n * stages.STILL_RATE * 1e-9 * F  # the cost's fall a round may have: 1e-4
     script = iter([  # (dz, cost at the round's end, JᵀJ scale)
-        (1e-3, F, 1.0),         # 1: the first round never counts
-        (1e-3, F, 1.0),         # 2: calm (½ dz² · 2 = 1e-6 = 1e-9 F)
-        (1e-3, F - 1e-4, 1.0),  # 3: the cost moved by 1e-7 F: not calm
-        (1e-3, F - 1e-4, 1e4),  # 4: the predictions moved: not calm
-        (0.0, F - 1e-4, 1.0),   # 5: no step accepted: not calm
-        (1e-3, F - 1e-4 - tiny, 1.0),  # 6: calm
-        (1e-3, F - 1e-4 - 2 * tiny, 1.0),  # 7: calm again: converged
+        (1e-3, F, 1.0),                     # 1: the first round never counts
+        (1e-3, F, 1.0),                     # 2: calm (½ dz² · 2 = 1e-6 = 1e-9 F)
+        (1e-3, F - 2 * allowed, 1.0),       # 3: the cost fell too much: not calm
+        (1e-3, F - 2 * allowed, 1e4),       # 4: the predictions moved: not calm
+        (0.0, F - 2 * allowed, 1.0),        # 5: no step accepted: not calm
+        (1e-3, F - 2.9 * allowed, 1.0),     # 6: calm
+        (1e-3, F - 3.8 * allowed, 1.0),     # 7: calm again: converged
         (1e-3, F, 1.0),
     ])
     rounds = []
@@ -729,8 +731,8 @@ def test_rounds_that_leave_the_fit_where_it_was_end_the_solve_converged(monkeypa
     end = _Round(np.array([0.301, 0.4]), np.asarray(10), np.asarray(F), np.asarray(1.0), True,
                  True, jtj=np.eye(2))
     z0 = np.array([0.3, 0.4])
-    assert stages.still(z0, F, end, 0.0, 1e-9)
-    assert not stages.still(z0, F * (1 + 2e-9), end, 0.0, 1e-9)  # the cost fell by 2e-9 F
+    assert stages.still(z0, F * (1 + 0.9e-7), end, 0.0, 1e-9)  # 10 steps of 0.9e-8 F each
+    assert not stages.still(z0, F * (1 + 1.1e-7), end, 0.0, 1e-9)  # 1.1e-8 F a step
     assert not stages.still(z0 - 1e-3, F, end, 0.0, 1e-9)  # ½ · 4e-6 > 1e-9 F
     assert stages.still(z0 - 1e-3, F, end, 3 * F, 1e-9)  # the floor counts in F
 

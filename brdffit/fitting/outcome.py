@@ -17,6 +17,7 @@ from .problem import Problem
 from .result import FitResult
 from .solve import Solved
 from .solvers import solver_label
+from .stages import STILL_RATE
 from .statistics import covariance
 from .transforms import at_bound
 
@@ -73,8 +74,9 @@ def verdict(best: Solved, ftol: float) -> Verdict:
     status = result_name(best.result)
     if best.still:
         return _if_identified(best, Verdict(True, "still", (
-            f"converged by the stillness test: the last two rounds of steps changed the cost "
-            f"and the predictions by less than ftol = {ftol:g} of the cost, while the local "
+            f"converged by the stillness test: in each of the last two rounds of steps the "
+            f"cost fell by less than {STILL_RATE * ftol:g} of itself per step and the "
+            f"predictions moved by less than ftol = {ftol:g} of the cost, while the local "
             f"quadratic model still promised a fraction {float(best.omega):.2g}"
         )))
     if not best.successful:

@@ -106,7 +106,8 @@ class FitResult:
         metrics: ``rmse`` (of the chosen residual), ``rmse_cosine``, ``rmse_log``,
             ``rel_error`` (mean ``|ρ̂-ρ|/max(ρ,1e-3)``), over the cells used.
         success, status, message: the solver's verdict (``status`` is optimistix's result name,
-            ``"successful"`` on success).
+            ``"successful"`` on success by the optimality test, ``"still"`` on success by the
+            stillness test, :func:`brdffit.fitting.stages.still`).
         steps: solver steps of the best start. starts: cost of each start (multi-start).
         loss, solver: what was used. n_cells: cells used; n_total: cells in the input.
         init: the starting parameters of the best start. wall_time: seconds for the whole call;
@@ -114,7 +115,7 @@ class FitResult:
         table: the input's name. covariance: ``"sandwich"`` or ``"gn"``, how ``cov`` was estimated.
         optimality: ``ω`` at the end point, the fraction of the cost that the bounded
             Gauss–Newton step could still remove (:func:`brdffit.fitting.solvers.optimality`);
-            ``success`` means ``ω ≤ ftol``.
+            ``success`` means ``ω ≤ ftol``, or status ``"still"``.
         provenance: what produced the result (empty for the low-level
             :func:`brdffit.fitting.fit`; :func:`brdffit.fit` fills it): ``input`` (``path``,
             ``sha256``, ``name``), ``options`` (every fit option, defaults resolved),

@@ -32,7 +32,9 @@ Parts swapped in (optimistix solvers are built from parts):
   nothing), that assumes nothing about how well the model fits. Optimistix's own Cauchy test (a
   negligible accepted step and residual change, ``rtol``/``atol``) also ends the solve, but then
   the fit is reported as *stalled* unless the optimality test holds too: the step limit and a
-  stall are never success.
+  stall are never success. Between rounds of steps, :func:`brdffit.fitting.stages.still`
+  adds the test of a relative cost change and a step in the units of the data, for valleys
+  where the local model keeps promising a decrease that no step finds.
 
 Why these parts, and the measurements behind them: ``docs/design/fitting.md``.
 """

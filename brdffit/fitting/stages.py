@@ -54,24 +54,31 @@ ROUND_STEPS = 10
 #: A solve ends, converged, after this many rounds in a row that ran out of steps and left the
 #: fit where it was (:func:`still`); with Newton's model, one round on each quadratic model.
 STILL_ROUNDS = 2
+#: The stillness test allows the cost to fall by this many ``ftol`` of itself per step: 1e-8
+#: at the default ``ftol``, the default ``ftol`` of ``scipy.optimize.least_squares``, which
+#: stops on a single step that lowers the cost by less (here: every step of ``STILL_ROUNDS``
+#: rounds in a row, on average).
+STILL_RATE = 10.0
 
 
 def still(z0, cost0: float, out: Solved, floor: float, ftol: float) -> bool:
-    r"""Whether a round from ``z0`` (cost ``cost0``) to ``out`` left the fit where it was, in
-    the units of the data: with ``F`` the end point's cost plus the cost floor, the cost moved
-    by at most ``ftol · F``,
+    r"""Whether a round of ``n`` steps from ``z0`` (cost ``cost0``) to ``out`` left the fit
+    where it was, in the units of the data: with ``F`` the end point's cost plus the cost
+    floor, the cost moved by at most ``STILL_RATE · ftol`` of itself per step, and the
+    predictions by at most ``ftol · F``,
 
-    .. math:: |F_0 - F| \le \mathrm{ftol}\,F, \qquad
+    .. math:: |F_0 - F| \le n\,\mathrm{STILL\_RATE}\;\mathrm{ftol}\,F, \qquad
               \tfrac12\,\Delta z^\top J^\top J\,\Delta z \le \mathrm{ftol}\,F,
 
-    and so did the predictions: ``½ ΔzᵀJᵀJΔz ≈ ½ ‖ρ̂(z) − ρ̂(z₀)‖²`` in the residual's units
-    (``JᵀJ`` at the end point), the test of a step in the units of the data. A round of
-    ``ROUND_STEPS`` steps, not one step: a single short step of a shrinking trust region moves
-    nothing and proves nothing."""
+    with ``½ ΔzᵀJᵀJΔz ≈ ½ ‖ρ̂(z) − ρ̂(z₀)‖²`` in the residual's units (``JᵀJ`` at the end
+    point): the test of a relative cost change and of a step in the units of the data. Over a
+    round, not one step: a single short step of a shrinking trust region moves nothing and
+    proves nothing."""
     dz = np.asarray(out.z, float) - np.asarray(z0, float)
     cost = float(out.cost) + floor
     moved = 0.5 * dz @ np.asarray(out.jtj, float) @ dz
-    return bool(abs(cost0 + floor - cost) <= ftol * cost and moved <= ftol * cost)
+    fell = abs(cost0 + floor - cost)
+    return bool(fell <= int(out.steps) * STILL_RATE * ftol * cost and moved <= ftol * cost)
 
 
 def starts(z0: np.ndarray, multistart: int, seed: int) -> list[np.ndarray]:
