@@ -71,7 +71,6 @@ def verdict(best: Solved, ftol: float) -> Verdict:
             "the solver produced non-finite parameters or cost; the result reports the starting "
             "point. Try another `init`, `multistart`, or the `log` loss."
         ))
-    status = result_name(best.result)
     if best.still:
         return _if_identified(best, Verdict(True, "still", (
             f"converged by the stillness test: in each of the last two rounds of steps the "
@@ -79,6 +78,7 @@ def verdict(best: Solved, ftol: float) -> Verdict:
             f"predictions moved by less than ftol = {ftol:g} of the cost, while the local "
             f"quadratic model still promised a fraction {float(best.omega):.2g}"
         )))
+    status = result_name(best.result)
     if not best.successful:
         message = optx.RESULTS[best.result]
         if status in ("nonlinear_max_steps_reached", "max_steps_reached"):

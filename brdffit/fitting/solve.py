@@ -53,9 +53,9 @@ class Solved(eqx.Module):
         metrics: the error figures (:func:`.statistics.metrics_from`).
         m: the number of residuals with non-zero weight.
         step_size: the trust region's last step size (NaN for a solver without one).
-        still: the solve ended on the stillness test (:meth:`.stages.Run.solve`): rounds of
-            steps on both quadratic models in turn moved neither the cost nor the predictions
-            by more than ``ftol`` of the cost; set on the host, ``False`` from the solver.
+        still: the solve ended on the stillness test (:func:`.stages.still`, applied by
+            :meth:`.stages.Run.solve` between rounds); set on the host, ``False`` from the
+            solver.
     """
 
     z: jax.Array
