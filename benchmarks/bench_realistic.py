@@ -26,7 +26,9 @@ transcription of the model, ``bench_fit.ggx_numpy``), with the same cell weights
 cell's share of the angles, brdffit's default ``weighting="angles"``), the same cells and the
 same start (``result.init``): its time and cost against brdffit's warm time and cost.
 
-The machine may be shared: the load average is printed with the figures.
+The machine may be shared: the load average is printed with the figures, and so is the
+**machine reference**, a fixed workload timed before the first fit and after the last
+(:func:`machine_reference`): the times of two runs compare only after dividing by it.
 """
 
 from __future__ import annotations
@@ -83,6 +85,24 @@ def table_of(render, name: str, cache: Path | None = None) -> MERLTable:
             np.save(path, rgb)
     valid = np.all(rgb >= 0, axis=0)
     return MERLTable.from_rgb(np.moveaxis(np.maximum(rgb, 0.0), 0, -1), valid, name=name)
+
+
+def machine_reference(repeat: int = 5) -> float:
+    """Seconds for a fixed workload that uses no brdffit code, the median of ``repeat`` runs:
+    ``bench_fit.ggx_numpy`` (plain NumPy) at one parameter vector over the 1,458,000 cell
+    directions of a full MERL table. It measures the machine (core speed, memory bandwidth,
+    other load), so that fit times measured on different days can be put side by side."""
+    from bench_fit import ggx_numpy
+    from data_formats.merl import cell_directions
+
+    wi, wo = (np.asarray(a, float).reshape(-1, 3) for a in cell_directions()[:2])
+    x = np.array([0.1, 0.2, 0.3, 0.04, 0.05, 0.06, 0.2, 0.9])
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        ggx_numpy(x, wi, wo)
+        times.append(time.perf_counter() - t)
+    return statistics.median(times)
 
 
 def published() -> dict[str, float]:
@@ -167,6 +187,9 @@ def main():
     models = args.models.split(",")
     lit = published()
     rows, ref = [], []
+    reference = machine_reference()
+    print(f"machine reference (NumPy ggx over a full table, median of 5): {reference:.3f} s",
+          flush=True)
     t_all = time.perf_counter()
     for i, name in enumerate(names):
         table = table_of(render, name, args.cache)
@@ -189,7 +212,8 @@ def main():
                   f"(brdffit {s['brdffit_cost']:.7g}, ratio {s['brdffit_cost'] / s['scipy_cost']:.8f}) "
                   f"speed {s['scipy_time'] / s['brdffit_time']:.1f}x", flush=True)
     print(f"\n{len(names)} materials, {time.perf_counter() - t_all:.0f} s; load average "
-          f"{os.getloadavg()}; peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+          f"{os.getloadavg()}; peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB; "
+          f"machine reference {reference:.3f} s before, {machine_reference():.3f} s after")
     for model in models:
         print(summarize(rows, model, lit))
     if ref:
