@@ -87,7 +87,11 @@ def table_of(render, name: str, cache: Path | None = None) -> MERLTable:
     return MERLTable.from_rgb(np.moveaxis(np.maximum(rgb, 0.0), 0, -1), valid, name=name)
 
 
-def machine_reference(repeat: int = 5) -> float:
+#: :func:`machine_reference` reports the median of this many runs.
+REFERENCE_REPEAT = 5
+
+
+def machine_reference(repeat: int = REFERENCE_REPEAT) -> float:
     """Seconds for a fixed workload that uses no brdffit code, the median of ``repeat`` runs:
     ``bench_fit.ggx_numpy`` (plain NumPy) at one parameter vector over the 1,458,000 cell
     directions of a full MERL table. It measures the machine (core speed, memory bandwidth,
@@ -95,7 +99,7 @@ def machine_reference(repeat: int = 5) -> float:
     from bench_fit import ggx_numpy
     from data_formats.merl import cell_directions
 
-    wi, wo = (np.asarray(a, float).reshape(-1, 3) for a in cell_directions()[:2])
+    wi, wo = (a.reshape(-1, 3) for a in cell_directions())
     x = np.array([0.1, 0.2, 0.3, 0.04, 0.05, 0.06, 0.2, 0.9])
     times = []
     for _ in range(repeat):
@@ -188,7 +192,8 @@ def main():
     lit = published()
     rows, ref = [], []
     reference = machine_reference()
-    print(f"machine reference (NumPy ggx over a full table, median of 5): {reference:.3f} s",
+    print(f"machine reference (NumPy ggx over a full table, median of {REFERENCE_REPEAT}): "
+          f"{reference:.3f} s",
           flush=True)
     t_all = time.perf_counter()
     for i, name in enumerate(names):
