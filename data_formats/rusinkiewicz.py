@@ -112,18 +112,30 @@ def dirs_from_half_diff(theta_h, theta_d, phi_d, phi_h=0.0):
     all an isotropic BRDF needs. Returns ``wi, wo`` of shape ``(..., 3)``.
     ``half_diff_from_dirs(*dirs_from_half_diff(th, td, pd, ph), fold=False)`` gives back
     ``(th, td, pd)`` up to rounding for ``0 < th < pi/2``, ``0 < td < pi/2``, ``|pd| < pi``.
+
+    With ``d = (sin theta_d cos phi_d, sin theta_d sin phi_d, cos theta_d)``,
+    ``wi = R_z(phi_h) R_y(theta_h) d`` and ``wo = R_z(phi_h) R_y(theta_h) (-d_x, -d_y, d_z)``.
+    Each sine and cosine is taken on its own angle's shape before anything broadcasts, so for
+    separable axes (a grid as ``th[:, None, None]``, ``td[None, :, None]``, ``pd[None, None,
+    :]``) the trigonometry is a few hundred values and the full-size work a dozen products;
+    ``phi_h = 0`` (a plain scalar zero, the default) skips the azimuthal rotation.
     """
-    theta_h, theta_d, phi_d, phi_h = np.broadcast_arrays(
-        *(np.asarray(a, dtype=np.float64) for a in (theta_h, theta_d, phi_d, phi_h))
-    )
-    st, ct = np.sin(theta_d), np.cos(theta_d)
-    dx, dy, dz = st * np.cos(phi_d), st * np.sin(phi_d), ct
+    theta_h, theta_d, phi_d, phi_h = (np.asarray(a, dtype=np.float64)
+                                      for a in (theta_h, theta_d, phi_d, phi_h))
+    shape = np.broadcast_shapes(theta_h.shape, theta_d.shape, phi_d.shape, phi_h.shape)
+    st, dz = np.sin(theta_d), np.cos(theta_d)
+    dx, dy = st * np.cos(phi_d), st * np.sin(phi_d)
     sh, ch = np.sin(theta_h), np.cos(theta_h)
+    # R_y(theta_h) (+-dx, +-dy, dz): x = dz sh +- dx ch, z = dz ch -+ dx sh.
+    a, b, c, e = dz * sh, dx * ch, dz * ch, dx * sh
+    wi, wo = np.empty(shape + (3,)), np.empty(shape + (3,))
+    if phi_h.ndim == 0 and phi_h == 0.0:
+        wi[..., 0], wi[..., 1], wi[..., 2] = a + b, dy, c - e
+        wo[..., 0], wo[..., 1], wo[..., 2] = a - b, 0.0 - dy, c + e  # +0, not -0, at phi_d = 0
+        return wi, wo
     sp, cp = np.sin(phi_h), np.cos(phi_h)
-
-    def rotate(x, y, z):  # R_z(phi_h) R_y(theta_h) (x, y, z)
-        x1 = x * ch + z * sh
-        z1 = z * ch - x * sh
-        return np.stack([x1 * cp - y * sp, x1 * sp + y * cp, z1], axis=-1)
-
-    return rotate(dx, dy, dz), rotate(-dx, -dy, dz)
+    for out, x1, y, z1 in ((wi, a + b, dy, c - e), (wo, a - b, 0.0 - dy, c + e)):
+        out[..., 0] = x1 * cp - y * sp  # R_z(phi_h)
+        out[..., 1] = x1 * sp + y * cp
+        out[..., 2] = z1
+    return wi, wo
