@@ -140,10 +140,13 @@ def _static_rows(wi, wo, cutoff):
 
 
 def _gather(a, rows, n_rows: int, fill, dtype):
-    """``a[rows]`` in ``dtype`` with rows appended up to ``n_rows``, filled with ``fill``."""
+    """``a[rows]`` in ``dtype`` with rows appended up to ``n_rows``, filled with ``fill``.
+
+    ``rows`` are valid indices; ``mode="clip"`` only spares ``np.take`` the buffered copy that
+    its default ``mode="raise"`` makes of ``out`` (10-50x slower on a full MERL table)."""
     out = np.empty((n_rows,) + a.shape[1:], dtype)
     if a.dtype == out.dtype:
-        np.take(a, rows, axis=0, out=out[: len(rows)])
+        np.take(a, rows, axis=0, out=out[: len(rows)], mode="clip")
     else:
         out[: len(rows)] = a[rows]
     out[len(rows) :] = fill
