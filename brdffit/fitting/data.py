@@ -139,12 +139,26 @@ def _static_rows(wi, wo, cutoff):
     return np.flatnonzero(ok)
 
 
+def _aligned_empty(shape, dtype, align: int = 64):
+    """``np.empty(shape, dtype)`` whose data start on an ``align``-byte boundary.
+
+    ``jax.device_put`` of such an array on the CPU aliases it instead of copying it (NumPy's
+    own large allocations start 16 bytes past a page, and ``jnp.asarray`` copies even an
+    aligned array): a full MERL table's cells are 27 MB per array. The caller must not
+    modify the array once it is on the device."""
+    dtype = np.dtype(dtype)
+    size = int(np.prod(shape)) * dtype.itemsize
+    buf = np.empty(size + align, np.uint8)
+    off = (-buf.ctypes.data) % align
+    return buf[off:off + size].view(dtype).reshape(shape)
+
+
 def _gather(a, rows, n_rows: int, fill, dtype):
     """``a[rows]`` in ``dtype`` with rows appended up to ``n_rows``, filled with ``fill``.
 
     ``rows`` are valid indices; ``mode="clip"`` only spares ``np.take`` the buffered copy that
     its default ``mode="raise"`` makes of ``out`` (10-50x slower on a full MERL table)."""
-    out = np.empty((n_rows,) + a.shape[1:], dtype)
+    out = _aligned_empty((n_rows,) + a.shape[1:], dtype)
     if a.dtype == out.dtype:
         np.take(a, rows, axis=0, out=out[: len(rows)], mode="clip")
     else:
@@ -196,7 +210,8 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
             raise ConfigError("every usable sample has weight 0 (SampleSet.weight); give the "
                               "samples positive weights or fit with weighting='samples'")
         sw[:k] *= np.sqrt(measure / mean)[:, None]
-    arrays = [jnp.asarray(a) for a in (rgb, sw)]  # explicit transfers are the fast path
+    rgb.flags.writeable = False  # aliased by its device copy (:func:`_aligned_empty`)
+    arrays = [jax.device_put(a) for a in (rgb, sw)]  # explicit transfers are the fast path
     rgb_d, target, sw_d = _values(dirs.wi_device, dirs.wo_device, *arrays, loss=loss,
                                   chunks=chunks, dtype=dtype)
     data = FitData(dirs.wi_device, dirs.wo_device, rgb_d, target, sw_d)
@@ -269,7 +284,8 @@ def _directions(samples, cutoff, sub: Subsample | None, seed: int, dtype: str) -
     wi_h, wo_h = _gather(wi, rows, n, up, "float64"), _gather(wo, rows, n, up, "float64")
     for a in (rows, wi_h, wo_h):
         a.flags.writeable = False
-    wi_d, wo_d = (_interleave(jnp.asarray(a), chunks=chunks, dtype=dtype) for a in (wi_h, wo_h))
+    wi_d, wo_d = (_interleave(jax.device_put(a), chunks=chunks, dtype=dtype)
+                  for a in (wi_h, wo_h))
     out = _Directions(rows, n_usable, chunks, wi_h, wo_h, wi_d, wo_d, (pin_i, pin_o))
     if key is not None:
         _LAST_DIRECTIONS.clear()
