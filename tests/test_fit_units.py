@@ -4,6 +4,7 @@ from ``jax.jacfwd``, closed forms."""
 
 import dataclasses
 import json
+import logging
 import warnings
 
 import equinox as eqx
@@ -176,6 +177,40 @@ def test_second_order_term_matches_finite_differences():
     ref = 0.5 * (hess + hess.T) - J.T @ J
     assert np.max(np.abs(ref)) > 1e-3 * np.max(np.abs(J.T @ J))  # the term is not negligible here
     np.testing.assert_allclose(second, ref, atol=1e-6 * np.max(np.abs(J.T @ J)))
+
+
+def _compiles_of_second_order(caplog, call) -> list[str]:
+    """The XLA compilations of the second-order program that ``call()`` made (JAX's log)."""
+    caplog.clear()
+    with jax.log_compiles(True), caplog.at_level(logging.WARNING):
+        call()
+    return [r.getMessage() for r in caplog.records
+            if "Finished XLA compilation" in r.getMessage() and "_jitted_second" in r.getMessage()]
+
+
+@pytest.mark.parametrize("x64", [True, False])
+def test_second_order_program_compiled_ahead_is_the_one_the_fit_then_calls(caplog, x64):
+    """``compile_second_ahead`` compiles, on its own thread and under the caller's (thread-local)
+    x64 setting, the very program that ``second_order`` then runs: the call compiles nothing.
+    Without it the same call compiles (the log check can fail). Sample counts of this test
+    only, so no other test has compiled these shapes."""
+    from brdffit.fitting.solve import compile_second_ahead, second_order
+
+    model = brdffit.get_model("ggx")
+    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2, "f90": 0.6}
+    with jax.enable_x64(x64), warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # "float64 ... truncated to float32"
+        prob = _problem("ggx", tuple(range(8)), x0)
+        z = jnp.asarray(to_box(model.flatten(x0), np.asarray(prob.slo), np.asarray(prob.shi),
+                               flat_log(model)))
+        ahead = select(ggx_samples(1237 + 2 * x64, x0, noise=0.1), prob.loss).data
+        plain = select(ggx_samples(1238 + 2 * x64, x0, noise=0.1), prob.loss).data
+        thread = compile_second_ahead(prob, z, ahead)
+        thread.join()
+        assert _compiles_of_second_order(caplog, lambda: second_order(prob, z, ahead, 1)) == []
+        assert len(_compiles_of_second_order(caplog, lambda: second_order(prob, z, plain, 1))) == 1
+        np.testing.assert_array_equal(second_order(prob, z, ahead, 1).dtype,
+                                      np.float64 if x64 else np.float32)
 
 
 # -- the normal form --------------------------------------------------------------------------

@@ -169,6 +169,25 @@ def test_dirs_from_half_diff_inverts_half_diff_from_dirs():
     assert np.allclose(wi, np.einsum("nij,njk,nk->ni", _rot_z(ph), _rot_y(th), d), atol=1e-12)
 
 
+def test_dirs_from_half_diff_of_separable_axes_is_that_of_the_flat_angles():
+    """A grid given as separable axes (each sine and cosine taken on its axis, the azimuthal
+    rotation skipped for the default ``phi_h = 0``) gives exactly the directions of the same
+    angles given flat with an array of zero ``phi_h`` (the general path), and those agree with
+    the oracle's rotation matrices."""
+    rng = np.random.default_rng(6)
+    th = rng.uniform(0.0, 1.55, 7)[:, None, None]
+    td = rng.uniform(0.0, 1.55, 5)[None, :, None]
+    pd = rng.uniform(0.0, 3.1, 9)[None, None, :]
+    wi, wo = dirs_from_half_diff(th, td, pd)
+    assert wi.shape == wo.shape == (7, 5, 9, 3)
+    flat = [a.ravel() for a in np.broadcast_arrays(th, td, pd)]
+    ref_i, ref_o = dirs_from_half_diff(*flat, np.zeros(flat[0].size))
+    assert np.array_equal(wi.reshape(-1, 3), ref_i) and np.array_equal(wo.reshape(-1, 3), ref_o)
+    t, d_, p = flat
+    d = np.stack([np.sin(d_) * np.cos(p), np.sin(d_) * np.sin(p), np.cos(d_)], -1)
+    assert np.allclose(ref_i, np.einsum("nij,njk,nk->ni", _rot_z(0 * t), _rot_y(t), d), atol=1e-12)
+
+
 def test_degenerate_pairs_are_finite():
     z = np.array([0.0, 0.0, 1.0])
     x = np.array([1.0, 0.0, 0.0])

@@ -11,6 +11,7 @@ blocks and the full-table solve (:mod:`.stages`).
 from __future__ import annotations
 
 import functools
+import threading
 
 import equinox as eqx
 import jax
@@ -191,6 +192,33 @@ def _jitted_second(problem: Problem, z, data, blocks):
     keep = (jnp.arange(rows) < blocks * block)[:, None]
     slab = eqx.tree_at(lambda d: d.sqrt_weight, slab, jnp.where(keep, slab.sqrt_weight, 0.0))
     return problem.block_second_order(z, slab).astype(acc)
+
+
+def compile_second_ahead(problem: Problem, z, data: FitData) -> threading.Thread:
+    """Start compiling the second-order program of :func:`second_order` for ``problem`` and
+    ``data`` on a thread, and return the thread; nothing is run, and the caller must ``join``
+    it before its first :func:`second_order` (two compiles of one program would each be paid).
+
+    ``lower().compile()`` fills the caches that the first call of :func:`_jitted_second` then
+    finds (its trace, its lowering and the executable), so a cold fit compiles this program
+    while the solve's own program is being traced and compiled, instead of after the first
+    stage. The thread runs under the caller's ``jax_enable_x64`` (a thread-local setting that
+    :func:`brdffit.fit` sets per call: a thread of its own would trace a float32 program).
+    A failure on the thread is dropped: the first call then compiles as it would have.
+    """
+    x64 = bool(jax.config.jax_enable_x64)
+    z = jnp.asarray(z)
+
+    def work():
+        try:
+            with jax.enable_x64(x64):
+                _jitted_second.lower(problem, z, data, np.int32(1)).compile()
+        except Exception:  # noqa: BLE001 (only time is at stake; the call compiles instead)
+            pass
+
+    thread = threading.Thread(target=work, name="brdffit-second-order-compile", daemon=True)
+    thread.start()
+    return thread
 
 
 def second_order(problem: Problem, z, data: FitData, target: int) -> np.ndarray:

@@ -32,7 +32,7 @@ from .data import FitData
 from .events import Events
 from .parameters import flat_scanned
 from .problem import Problem
-from .solve import Solved, cost_floor, second_order, solve
+from .solve import Solved, compile_second_ahead, cost_floor, second_order, solve
 from .solvers import with_ftol, with_initial_step
 
 #: The warm start runs when the selection has at least this many blocks of cells ...
@@ -120,6 +120,13 @@ def plan(chunks: int, block_cells: int, scan: bool) -> list[tuple[str, int]]:
     return stages
 
 
+def start_plan(problem: Problem, data: FitData, scan: bool) -> list[tuple[str, int]]:
+    """The stages of every start of a fit (:func:`plan`): the scan only where ``scan`` is
+    asked for and the model has a lobe width to scan (:func:`scanned`)."""
+    chunks = problem.chunks
+    return plan(chunks, data.wi.shape[0] // chunks, scan and bool(np.any(scanned(problem))))
+
+
 @dataclasses.dataclass(frozen=True)
 class Run:
     """The parts of one fit that every solve shares: the problem, the cells, their cost floor
@@ -130,6 +137,14 @@ class Run:
     floor: object
     max_steps: int
     events: Events
+    #: the second-order program being compiled ahead (:func:`.solve.compile_second_ahead`),
+    #: joined before the first second-order term and at the end of :func:`best_of`
+    ahead: object = None
+
+    def wait(self):
+        """Wait for the second-order program compiled ahead, if any."""
+        if self.ahead is not None:
+            self.ahead.join()
 
     def solve(self, solver, z0, active: int, newton: bool = False) -> Solved:
         """Up to ``max_steps`` solver steps from ``z0`` over the first ``active`` blocks, with
@@ -162,6 +177,8 @@ class Run:
         total, out, model, quiet, cost0 = 0, None, newton, 0, None
         while total < self.max_steps:
             steps = min(ROUND_STEPS, self.max_steps - total)
+            if model:
+                self.wait()
             second = second_order(self.problem, z0, self.data, active) if model else None
             out = solve(self.problem, solver, z0, self.data, floor, steps, active, second)
             total += int(out.steps)
@@ -208,10 +225,7 @@ class Run:
     def start(self, solver, z0, k: int, scan: bool = True) -> Solved:
         """Start ``k`` from ``z0`` through its stages (module docstring)."""
         self.events.start = k
-        chunks = self.problem.chunks
-        block_cells = self.data.wi.shape[0] // chunks
-        stages = plan(chunks, block_cells, scan and bool(np.any(scanned(self.problem))))
-        for i, (name, active) in enumerate(stages):
+        for i, (name, active) in enumerate(start_plan(self.problem, self.data, scan)):
             newton = i > 0  # Newton's model from the second stage on
             if name == "scan":
                 z0 = self.scan(solver, z0, active)
@@ -225,15 +239,21 @@ def best_of(problem: Problem, solver, data: FitData, zs, max_steps: int, scan: b
             events: Events) -> tuple[Solved, list[float]]:
     """Solve from every start in ``zs``; the best solve (:meth:`Solved.better_than`) and the
     cost of each start."""
-    run = Run(problem, data, cost_floor(problem, data), max_steps, events)
+    # every stage after the first uses the second-order program: compile it meanwhile
+    staged = len(start_plan(problem, data, scan)) > 1
+    ahead = compile_second_ahead(problem, zs[0], data) if staged else None
+    run = Run(problem, data, cost_floor(problem, data), max_steps, events, ahead)
     ftol = float(solver.ftol)
     best, costs = None, []
-    for k, z0 in enumerate(zs):
-        events.emit("start", start=k, of=len(zs))
-        out = run.start(solver, z0, k, scan)
-        costs.append(out.ranked_cost)
-        events.emit("start-done", start=k, cost=costs[-1], steps=int(out.steps),
-                    success=out.converged(ftol))
-        if best is None or out.better_than(best, ftol):
-            best = out
+    try:
+        for k, z0 in enumerate(zs):
+            events.emit("start", start=k, of=len(zs))
+            out = run.start(solver, z0, k, scan)
+            costs.append(out.ranked_cost)
+            events.emit("start-done", start=k, cost=costs[-1], steps=int(out.steps),
+                        success=out.converged(ftol))
+            if best is None or out.better_than(best, ftol):
+                best = out
+    finally:
+        run.wait()  # no thread outlives the fit
     return best, costs
