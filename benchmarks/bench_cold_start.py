@@ -11,8 +11,17 @@ What it does (the persistent compilation cache, :mod:`brdffit.compilation_cache`
    fills the cache). Then ``--repeat`` more fresh processes: cold processes that find the
    cache. Then the same with ``BRDFFIT_NO_COMPILATION_CACHE=1`` (every process compiles).
 3. Prints each process's wall time (start-up, reading, fitting, printing: what a user waits
-   for) and the fit's own ``wall_time`` from its JSON, the ratio first/second, the cache's
-   size, and the load average (the machine may be shared).
+   for) and the fit's own ``wall_time`` from its JSON, the ratio first/second, the cache-off
+   median against the cold-start goal (``GOAL_S``), the cache's size, and the load average
+   (the machine may be shared).
+
+``--input FILE`` times a table of your own (a realistic one: ``../shared/realistic/render.py``
+writes MERL tables) instead of the synthetic one. Before the first process and after the last
+it prints the machine's **fresh-memory reference** (:func:`fresh_memory_reference`): a cold
+``brdffit fit`` of a full table touches about 1 GB it never used before, and on a virtual
+machine whose host backs guest memory lazily, the first touch of a page can cost ~10 ms per
+MB at one moment and 0.1 ms at the next (``docs/design/fitting.md`` §14), so two cold figures
+compare only beside this one.
 """
 
 from __future__ import annotations
@@ -29,6 +38,37 @@ import time
 from pathlib import Path
 
 BRDFFIT = [sys.executable, "-c", "import sys; from brdffit.cli import main; sys.exit(main())"]
+
+#: The goal for a cold ``brdffit fit --model ggx`` of a full table, compilation included (s).
+GOAL_S = 8.0
+
+#: The fresh-memory reference touches this many chunks of this many float64 values (35 MB).
+TOUCH_CHUNKS, TOUCH_VALUES = 20, 4_374_000
+
+_TOUCH = f"""
+import time, numpy as np
+keep, out = [], []
+for _ in range({TOUCH_CHUNKS}):
+    t = time.perf_counter(); a = np.empty({TOUCH_VALUES}); a[:] = 1.0
+    out.append(time.perf_counter() - t); keep.append(a)
+print(' '.join(map(repr, out)))
+"""
+
+
+def fresh_memory_reference() -> tuple[float, float]:
+    """``(median, max)`` seconds per 35 MB that a fresh process takes to write memory it has
+    just allocated (``TOUCH_CHUNKS`` chunks, all kept): the page-fault cost that every cold
+    process pays on the memory it uses, which no brdffit code is in."""
+    out = subprocess.run([sys.executable, "-c", _TOUCH], capture_output=True, text=True,
+                         check=True)
+    times = [float(t) for t in out.stdout.split()]
+    return statistics.median(times), max(times)
+
+
+def print_fresh_memory(when: str) -> None:
+    med, top = fresh_memory_reference()
+    print(f"  fresh-memory reference ({when}): {med * 1e3:.0f} ms median, {top * 1e3:.0f} ms max "
+          f"per 35 MB ({TOUCH_CHUNKS} chunks)")
 
 
 def run(args, env, cwd) -> tuple[float, dict]:
@@ -49,22 +89,30 @@ def main() -> None:
     ap.add_argument("--model", default="ggx")
     ap.add_argument("--samples", type=int, help="a sample list of N pairs instead of a table")
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--input", help="a MERL table (.binary) or sample list to time instead")
     opts = ap.parse_args()
+    if opts.input and opts.samples:
+        raise SystemExit("bench_cold_start: give --input or --samples, not both")
     work = Path(tempfile.mkdtemp(prefix="brdffit-bench-cold-"))
     try:
         cache = work / "cache"
         env = {**os.environ, "XDG_CACHE_HOME": str(cache)}
         env.pop("BRDFFIT_NO_COMPILATION_CACHE", None)
-        name = "in.csv" if opts.samples else "in.binary"
-        synth = ["synth", "--model", opts.model, "-o", name, "--quiet"]
-        run(synth + (["--samples", str(opts.samples)] if opts.samples else []),
-            {**env, "BRDFFIT_NO_COMPILATION_CACHE": "1"}, work)
+        if opts.input:
+            name = str(Path(opts.input).resolve())
+        else:
+            name = "in.csv" if opts.samples else "in.binary"
+            synth = ["synth", "--model", opts.model, "-o", name, "--quiet"]
+            run(synth + (["--samples", str(opts.samples)] if opts.samples else []),
+                {**env, "BRDFFIT_NO_COMPILATION_CACHE": "1"}, work)
+        print_fresh_memory("before")
         fit = ["fit", name, "--model", opts.model, "--json", "--quiet"]
         first = run(fit, env, work)
         cached = [run(fit, env, work) for _ in range(opts.repeat)]
         off_env = {**env, "BRDFFIT_NO_COMPILATION_CACHE": "1"}
         off = [run(fit, off_env, work) for _ in range(opts.repeat)]
-        what = f"{opts.samples} samples" if opts.samples else "a full MERL table"
+        what = (opts.input if opts.input else
+                f"{opts.samples} samples" if opts.samples else "a full synthetic MERL table")
         print(f"brdffit fit --model {opts.model} on {what}, one fresh process each:")
         print(f"  first process (empty cache)   {first[0]:6.2f} s  (fit {first[1]['wall_time']:.2f} s)")
         for k, (wall, r) in enumerate(cached, 2):
@@ -75,6 +123,10 @@ def main() -> None:
         print(f"  first / second process: {first[0] / second:.2f}x; fit time "
               f"{first[1]['wall_time'] / statistics.median(r['wall_time'] for _, r in cached):.2f}x;"
               f" cache {size_of(cache) / 1e6:.1f} MB")
+        cold = statistics.median(w for w, _ in off)
+        print(f"  cache off, median {cold:.2f} s against the {GOAL_S:.0f} s goal: "
+              f"{cold / GOAL_S:.2f}x")
+        print_fresh_memory("after")
         print(f"  load average {os.getloadavg()[0]:.2f} (cores {os.cpu_count()})")
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -24,6 +24,7 @@ table. Measurements and the history of these choices: ``docs/design/fitting.md``
 from __future__ import annotations
 
 import dataclasses
+import threading
 
 import equinox as eqx
 import numpy as np
@@ -138,8 +139,9 @@ class Run:
     max_steps: int
     events: Events
     #: the second-order program being compiled ahead (:func:`.solve.compile_second_ahead`),
-    #: joined before the first second-order term and at the end of :func:`best_of`
-    ahead: object = None
+    #: joined before the first second-order term and when :func:`best_of` ends, also by an
+    #: exception: a compile still running when the interpreter shuts down could crash it
+    ahead: threading.Thread | None = None
 
     def wait(self):
         """Wait for the second-order program compiled ahead, if any."""
