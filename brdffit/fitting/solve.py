@@ -25,12 +25,23 @@ from .problem import Problem
 from .solvers import COST_NOISE, end_optimality
 from .statistics import N_CELL_SUMS, metrics_from
 
-#: XLA CPU option for the fitting program: keep YNNPACK for matrix products only (its default
-#: also routes the reductions of the 3-wide dot products of direction batches through slow
-#: YNNPACK fusions; ``docs/design/fitting.md`` has the measurements). A per-program compiler
-#: option: ``jax.config`` and ``XLA_FLAGS`` are untouched; on other backends, or a jaxlib
-#: without the option, none is set.
-CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": "LIBRARY_FUSION_TYPE_DOT"}
+#: XLA CPU options for the fitting program (per program: ``jax.config`` and ``XLA_FLAGS`` are
+#: untouched; on other backends, or a jaxlib without them, none is set;
+#: ``docs/design/fitting.md`` §5 and §14 have the measurements):
+#:
+#: * keep YNNPACK for matrix products only: its default also routes the reductions of the
+#:   3-wide dot products of direction batches through slow YNNPACK fusions;
+#: * no while-loop invariant code motion. Each tangent field of the pass
+#:   (:meth:`.problem.Problem.tangents_x`) is a ``jvp`` that traces the model's primal again;
+#:   outside a loop XLA's common-subexpression elimination merges the copies, but inside the
+#:   loop over blocks the motion pass first hoists each copy's parameter-only scalars into a
+#:   loop value of its own, and the copies, no longer identical, all stay: a ``beckmann`` pass
+#:   computed its ``D`` and both Λ four times (16 ``exp`` per cell instead of 4). Without the
+#:   motion the copies merge; the hoisted scalars cost nothing per block.
+CPU_COMPILER_OPTIONS = {
+    "xla_cpu_experimental_ynn_fusion_type": "LIBRARY_FUSION_TYPE_DOT",
+    "xla_disable_hlo_passes": "while-loop-invariant-code-motion",
+}
 
 #: The second-order term of a stage is measured on its leading blocks holding at least
 #: ``SECOND_CELLS`` cells (an evenly spread subset, :func:`.data.select`; all of a smaller
