@@ -184,7 +184,8 @@ class Problem(eqx.Module):
         components: with the tangent set to one on every free component, channel ``c`` of
         ``T_k`` is exactly ``∂r_{·c}/∂x_c``. Any other parameter takes one ``jvp`` per free
         component: 3 products instead of 7 for ``ggx``. XLA's common-subexpression elimination
-        shares the primal between them.
+        shares the primal between them; inside the loop over blocks only when while-loop
+        invariant code motion is off (:data:`~brdffit.fitting.solve.CPU_COMPILER_OPTIONS`).
 
         ``tables`` (from :meth:`pass_tables`, for a model with ``per_pass``): the model is
         ``per_pass.apply`` with those tables, whose tangent enters the fields of the
