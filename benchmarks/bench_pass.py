@@ -5,8 +5,8 @@ with the fitting program's XLA options and with each of them left out.
 
 A fit's time is mostly passes (a converged full stage takes two or three), so this is the unit
 of its cost. The table is a full synthetic MERL table (``data_formats.merl.synthesize``
-of the model at its defaults, ``evaluate_model``: no download). Each program is compiled once; the calls are
-interleaved across the variants, so a change in the machine's speed during the run affects
+of the model at its defaults, ``evaluate_model``: no download), prepared once per model; each
+variant's program is compiled once and the calls are interleaved across the variants, so a change in the machine's speed during the run affects
 them alike. Printed per model and variant: min and median seconds of ``--repeat`` calls, the
 number of ``exponential`` instructions in the optimised program (a duplicated primal shows
 there, ``docs/design/fitting.md`` §14), and the min against the default options' min.
@@ -43,14 +43,18 @@ def variants() -> dict[str, dict]:
     return out
 
 
-def compiled_pass(model_name: str, options: dict):
-    """``(call, exps)``: a compiled full-table pass of ``model_name`` at its start point on a
-    synthetic table of the model, and its number of ``exponential`` instructions."""
+def prepared(model_name: str):
+    """The fit's problem, cells and start point of ``model_name`` on a full synthetic table of
+    the model at its defaults."""
     model = get_model(model_name)
     table = synthesize(lambda wi, wo: evaluate_model(model, None, wi, wo), name=model_name)
     prep = prepare(table, model, Settings.of(fit_options(None)))
-    pb, data = prep.problem, prep.selection.data
-    u = jnp.asarray(prep.z0)
+    return prep.problem, prep.selection.data, jnp.asarray(prep.z0)
+
+
+def compiled_pass(pb, data, u, options: dict):
+    """``(call, exps)``: the full-table pass of ``pb`` at ``u`` compiled with ``options``, and
+    its number of ``exponential`` instructions."""
 
     def one_pass(u, d):
         return normal_form.gram(pb.block_sums, u, d, pb.chunks, np.int32(pb.chunks),
@@ -68,7 +72,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=10)
     opts = ap.parse_args()
     for name in opts.models.split(","):
-        calls = {v: compiled_pass(name, o) for v, o in variants().items()}
+        pb, data, u = prepared(name)
+        calls = {v: compiled_pass(pb, data, u, o) for v, o in variants().items()}
         times = {v: [] for v in calls}
         for _ in range(opts.repeat):
             for v, (call, _) in calls.items():

@@ -128,14 +128,12 @@ def dirs_from_half_diff(theta_h, theta_d, phi_d, phi_h=0.0):
     sh, ch = np.sin(theta_h), np.cos(theta_h)
     # R_y(theta_h) (+-dx, +-dy, dz): x = dz sh +- dx ch, z = dz ch -+ dx sh.
     a, b, c, e = dz * sh, dx * ch, dz * ch, dx * sh
-    wi, wo = np.empty(shape + (3,)), np.empty(shape + (3,))
-    if phi_h.ndim == 0 and phi_h == 0.0:
-        wi[..., 0], wi[..., 1], wi[..., 2] = a + b, dy, c - e
-        wo[..., 0], wo[..., 1], wo[..., 2] = a - b, 0.0 - dy, c + e  # +0, not -0, at phi_d = 0
-        return wi, wo
+    azimuth = not (phi_h.ndim == 0 and phi_h == 0.0)
     sp, cp = np.sin(phi_h), np.cos(phi_h)
+    wi, wo = np.empty(shape + (3,)), np.empty(shape + (3,))
+    # 0.0 - dy: +0, not -0, where phi_d = 0
     for out, x1, y, z1 in ((wi, a + b, dy, c - e), (wo, a - b, 0.0 - dy, c + e)):
-        out[..., 0] = x1 * cp - y * sp  # R_z(phi_h)
-        out[..., 1] = x1 * sp + y * cp
-        out[..., 2] = z1
+        if azimuth:  # R_z(phi_h)
+            x1, y = x1 * cp - y * sp, x1 * sp + y * cp
+        out[..., 0], out[..., 1], out[..., 2] = x1, y, z1
     return wi, wo
