@@ -100,41 +100,41 @@ def box_step(jtj, g, z, damping):
               \quad\text{s.t.}\quad -z \le \delta \le 1 - z
 
     with ``g = Jᵀr`` and ``Λ = diag(damping)`` (Levenberg–Marquardt damping; a tiny ridge for the
-    undamped step). A primal active-set method with a fixed number of rounds (``p + 3``; static
-    shapes, no Python branching): start with the coordinates on a bound whose gradient points
-    outward held there; solve the equality-constrained system for the others; if that step
-    leaves the box, hold the violators on the bounds they cross and solve again; otherwise
-    release a held coordinate whose multiplier has the wrong sign (the model's gradient points
-    back inside). The result is clipped to the box, so every iterate is feasible even if the
-    rounds run out; a held coordinate ends exactly on its bound (``z + (-z) = 0`` exactly).
+    undamped step). A primal active-set method with a fixed number of rounds (static shapes, no
+    Python branching): start with the coordinates on a bound whose gradient points outward held
+    there; each round solves the equality-constrained system for the others, then, if that step
+    leaves the box, holds the violators on the bounds they cross, and otherwise releases a held
+    coordinate whose multiplier has the wrong sign (the model's gradient points back inside).
+    The answer is the solve of the round after ``p + 3`` updates of the active set (``p + 4``
+    solves; one linear solve in the program, inside the loop). It is clipped to the box, so every
+    iterate is feasible even if the rounds run out; a held coordinate ends exactly on its bound
+    (``z + (-z) = 0`` exactly).
     """
     p = z.shape[0]
     mat = jtj + jnp.diag(damping)
     lo, hi = -z, 1.0 - z
     eye = jnp.eye(p, dtype=mat.dtype)
 
-    def solve(held_lo, held_hi):
+    def round_(_, carry):
+        held_lo, held_hi, _ = carry
         held = held_lo | held_hi
+        # the equality-constrained step: held coordinates on their bounds, the rest solved for
         val = jnp.where(held_lo, lo, jnp.where(held_hi, hi, 0.0))
         free = ~held
         m = jnp.where(free[:, None] & free[None, :], mat, 0.0) + jnp.where(held, 1.0, 0.0) * eye
         rhs = jnp.where(free, -g - mat @ val, val)
-        return jnp.where(held, val, _scaled_solve(m, rhs))
-
-    def round_(_, carry):
-        held_lo, held_hi = carry
-        d = solve(held_lo, held_hi)
-        held = held_lo | held_hi
+        d = jnp.where(held, val, _scaled_solve(m, rhs))
+        # the active set for the next round
         out_lo, out_hi = ~held & (d < lo), ~held & (d > hi)
         grad = mat @ d + g  # gradient of the quadratic model at d (the multipliers of the held)
         back_lo, back_hi = held_lo & (grad < 0), held_hi & (grad > 0)
         leave = jnp.any(out_lo | out_hi)
         held_lo = jnp.where(leave, held_lo | out_lo, held_lo & ~back_lo)
         held_hi = jnp.where(leave, held_hi | out_hi, held_hi & ~back_hi)
-        return held_lo, held_hi
+        return held_lo, held_hi, d
 
-    held_lo, held_hi = jax.lax.fori_loop(0, p + 3, round_, held_on_bounds(z, g))
-    d = solve(held_lo, held_hi)
+    held_lo, held_hi = held_on_bounds(z, g)
+    _, _, d = jax.lax.fori_loop(0, p + 4, round_, (held_lo, held_hi, jnp.zeros_like(mat[0])))
     d = jnp.where(jnp.isfinite(d), d, 0.0)
     return jnp.clip(d, lo, hi)
 
@@ -209,8 +209,35 @@ class NoiseTolerantTrustRegion(optx.ClassicalTrustRegion):
 
 
 class _BoxState(eqx.Module):
+    """A descent's state: the point it was last queried at (the last accepted iterate), that
+    point's function information, and its optimality measure ``ω`` (:func:`optimality`; ``inf``
+    before the first query), computed once per accepted point and read by
+    :meth:`Optimality.terminate` and :func:`end_optimality`."""
+
     y: object
     f_info: object
+    omega: jax.Array
+
+
+def _queried(y, f_info, inner_state=None) -> _BoxState:
+    """The :class:`_BoxState` of a descent queried at ``y`` (``f_info`` its information)."""
+    jtj, g, cost = _gn_parts(f_info)
+    omega = optimality(jtj, g, cost, y)[0].astype(y.dtype)
+    return _BoxState(y, f_info if inner_state is None else inner_state, omega)
+
+
+def _unqueried(y, f_info) -> _BoxState:
+    return _BoxState(y, f_info, jnp.asarray(jnp.inf, y.dtype))
+
+
+def _omega(state, y):
+    """``ω`` of an optimistix Gauss–Newton state at its last accepted point: the descent's
+    stored value (:class:`_BoxState`), or computed here for a descent of another kind."""
+    descent = state.descent_state
+    if isinstance(descent, _BoxState):
+        return descent.omega
+    jtj, g, cost = _gn_parts(state.f_info)
+    return optimality(jtj, g, cost, y)[0]
 
 
 class BoxDampedNewtonDescent(optx.DampedNewtonDescent):
@@ -226,11 +253,11 @@ class BoxDampedNewtonDescent(optx.DampedNewtonDescent):
     undamped: bool = False
 
     def init(self, y, f_info_struct):
-        return _BoxState(y, super().init(y, f_info_struct).f_info)
+        return _unqueried(y, super().init(y, f_info_struct).f_info)
 
     def query(self, y, f_info, state):
         del state
-        return _BoxState(y, f_info)
+        return _queried(y, f_info)
 
     def step(self, step_size, state):
         jtj, g, _ = _gn_parts(state.f_info)
@@ -246,10 +273,10 @@ class ProjectedDescent(eqx.Module):
     inner: optx.AbstractDescent
 
     def init(self, y, f_info_struct):
-        return _BoxState(y, self.inner.init(y, f_info_struct))
+        return _unqueried(y, self.inner.init(y, f_info_struct))
 
     def query(self, y, f_info, state):
-        return _BoxState(y, self.inner.query(y, f_info, state.f_info))
+        return _queried(y, f_info, self.inner.query(y, f_info, state.f_info))
 
     def step(self, step_size, state):
         d, result = self.inner.step(step_size, state.f_info)
@@ -263,8 +290,13 @@ class Optimality(optx.AbstractLeastSquaresSolver):
     fraction ``ω`` of the cost that the undamped bounded Gauss–Newton step could still remove;
     ``ω ≤ ftol`` ends the solve there (that point's ``aux``, ``JᵀJ`` and the sandwich meat,
     belong to the answer). The inner solver's own Cauchy test also ends it;
-    :func:`brdffit.fitting.solve.solve` re-evaluates ``ω`` at the end point and the fit reports
+    :func:`brdffit.fitting.solve.solve` reads ``ω`` at the end point and the fit reports
     success only when ``ω ≤ ftol``. Everything else (steps, damping, acceptance) is the inner solver's.
+
+    The bounded descents compute ``ω`` when they are queried at an accepted point (in
+    optimistix's branch for an accepted step) and keep it in their state (:class:`_BoxState`):
+    one instance of :func:`box_step` for the test in the compiled program instead of one each
+    for optimistix's initial and per-step termination checks and the end point.
     """
 
     inner: optx.AbstractLeastSquaresSolver
@@ -292,9 +324,7 @@ class Optimality(optx.AbstractLeastSquaresSolver):
         done, result = self.inner.terminate(fn, y, args, options, state, tags)
         # optimistix passes the iterate from *before* the step here; the accepted point is the
         # one the descent was last queried at
-        z = getattr(state.descent_state, "y", y)
-        jtj, g, cost = _gn_parts(state.f_info)
-        omega, _ = optimality(jtj, g, cost, z)
+        omega = _omega(state, getattr(state.descent_state, "y", y))
         fresh = (state.num_steps_since_acceptance == 0) & (state.num_steps > 0)
         ok = result == optx.RESULTS.successful
         return done | ((omega <= self.ftol) & fresh & ok), result
@@ -305,8 +335,7 @@ class Optimality(optx.AbstractLeastSquaresSolver):
 
 def end_optimality(sol):
     """``ω`` (:func:`optimality`) at the end point of an optimistix solution ``sol``."""
-    jtj, g, cost = _gn_parts(sol.state.f_info)
-    return optimality(jtj, g, cost, getattr(sol.state.descent_state, "y", sol.value))[0]
+    return _omega(sol.state, getattr(sol.state.descent_state, "y", sol.value))
 
 
 def _array(value):
