@@ -107,23 +107,22 @@ class Problem(eqx.Module):
         return r.reshape(-1)
 
     def block_second_order(self, u, data: FitData):
-        r"""``Σ_i r_i ∇²r_i`` over one block of cells: the Hessian of ``½Σr²`` minus ``JᵀJ``
-        (derivatives with respect to ``u``), the term Gauss–Newton drops.
+        r"""``Σ_i r_i ∇²r_i`` over one block of cells (derivatives with respect to ``u``): the
+        term of the Hessian of ``½Σr²`` that Gauss–Newton drops.
 
         On a table the model fits exactly it vanishes; on real materials (large residuals) it
         is what makes Gauss–Newton converge only linearly, and the solver adds an estimate of
-        it to ``JᵀJ`` (:func:`brdffit.fitting.normal_form.compress_newton`). Built with
-        ``jax.hessian`` (forward over reverse) and ``jax.jacfwd``: a few model evaluations per
-        parameter, computed on a subset of the cells only.
+        it to ``JᵀJ`` (:func:`brdffit.fitting.normal_form.compress_newton`). It is the Hessian
+        at ``u`` of ``g(v) = Σ_i r̄_i r_i(v)`` with the residuals ``r̄ = r(u)`` held fixed
+        (``∇²g = Σ_i r̄_i ∇²r_i``), built with ``jax.hessian`` (forward over reverse): a few
+        model evaluations per parameter, computed on a subset of the cells only. (The same
+        term as the Hessian of ``½Σr²`` minus ``JᵀJ``, without the Jacobian or the
+        cancellation.)
         """
         acc = jnp.promote_types(u.dtype, jnp.float32)
-
-        def cost(v):
-            r = self.residual(v, data).astype(acc)
-            return 0.5 * jnp.sum(r * r)
-
-        jac = jax.jacfwd(lambda v: self.residual(v, data).astype(acc))(u)
-        return jax.hessian(cost)(u) - jac.T @ jac
+        res = lambda v: self.residual(v, data).astype(acc)
+        held = jax.lax.stop_gradient(res(u))
+        return jax.hessian(lambda v: jnp.sum(held * res(v)))(u)
 
     def tangent_layout(self) -> tuple[tuple[str, tuple[int, ...], bool], ...]:
         """Per model parameter with free components: ``(name, free components, per_channel)``.
