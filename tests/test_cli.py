@@ -105,6 +105,19 @@ def test_models_lists_the_registry(capsys):
     assert d["params"][2]["lower"] == 1e-3 and d["params"][2]["log"] is True
 
 
+def test_the_program_ends_with_the_commands_code_and_all_its_output(capsys, tmp_path):
+    """The console script is ``run`` (``os._exit`` after the exit handlers): its piped output
+    is the whole of what ``main`` prints, and its exit code is the command's."""
+    scripts = (ROOT / "pyproject.toml").read_text()
+    assert 'brdffit = "brdffit.cli:run"' in scripts
+    assert main(["models"]) == 0
+    expected = capsys.readouterr().out
+    listed = brdffit_cli("models", cwd=tmp_path)
+    assert listed.returncode == 0 and listed.stdout == expected and listed.stderr == ""
+    missing = brdffit_cli("info", tmp_path / "missing.binary", cwd=tmp_path)
+    assert missing.returncode == 2 and missing.stderr.count("\n") == 1, missing.stderr
+
+
 def _fails(capsys, argv, message, code=2):
     """Run ``argv``; expect exit ``code`` and one line on stderr containing ``message``."""
     assert main(argv) == code
