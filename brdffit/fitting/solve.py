@@ -206,25 +206,38 @@ def _jitted_second(problem: Problem, z, data, blocks):
 
 
 def compile_second_ahead(problem: Problem, z, data: FitData) -> threading.Thread:
-    """Start compiling the second-order program of :func:`second_order` for ``problem`` and
-    ``data`` on a thread, and return the thread; nothing is run, and the caller must ``join``
-    it before its first :func:`second_order` (two compiles of one program would each be paid).
+    """Trace and lower the second-order program of :func:`second_order` for ``problem`` and
+    ``data`` here, then start its XLA compilation on a thread, and return the thread; nothing
+    is run, and the caller must ``join`` it before its first :func:`second_order` (two
+    compiles of one program would each be paid).
 
-    ``lower().compile()`` fills the caches that the first call of :func:`_jitted_second` then
-    finds (its trace, its lowering and the executable), so a cold fit compiles this program
+    ``lower()`` and ``compile()`` fill the caches that the first call of :func:`_jitted_second`
+    then finds (its trace, its lowering and the executable), so a cold fit compiles this program
     while the solve's own program is being traced and compiled, instead of after the first
-    stage. The thread runs under the caller's ``jax_enable_x64`` (a thread-local setting that
-    :func:`brdffit.fit` sets per call: a thread of its own would trace a float32 program).
-    A failure on the thread is dropped: the first call then compiles as it would have.
+    stage. Tracing and lowering are Python, which holds the interpreter lock: on a thread they
+    would only take turns with the tracing of the solve; done first, here, they leave the
+    thread the part that runs in parallel, XLA's compilation, overlapped with the solve's
+    tracing (cold ``ggx``: ``docs/design/fitting.md`` §15). The thread runs under the caller's
+    ``jax_enable_x64`` (a thread-local setting that :func:`brdffit.fit` sets per call). A
+    failure is dropped: the first call then compiles as it would have.
     """
     x64 = bool(jax.config.jax_enable_x64)
-    z = jnp.asarray(z)
+    # optimistix compares constant results (equinox enumerations) eagerly while the solve is
+    # traced: a small conversion program, compiled once per process. Compiled here, before the
+    # thread's compilation occupies the cores, it costs 0.03 s instead of 0.25-0.45 s.
+    _ = optx.RESULTS.successful == optx.RESULTS.successful
+    try:
+        lowered = _jitted_second.lower(problem, jnp.asarray(z), data, np.int32(1))
+    except Exception:  # noqa: BLE001 (only time is at stake; the call compiles instead)
+        lowered = None
 
     def work():
+        if lowered is None:
+            return
         try:
             with jax.enable_x64(x64):
-                _jitted_second.lower(problem, z, data, np.int32(1)).compile()
-        except Exception:  # noqa: BLE001 (only time is at stake; the call compiles instead)
+                lowered.compile()
+        except Exception:  # noqa: BLE001
             pass
 
     thread = threading.Thread(target=work, name="brdffit-second-order-compile", daemon=True)

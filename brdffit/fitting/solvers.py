@@ -326,8 +326,9 @@ class Optimality(optx.AbstractLeastSquaresSolver):
         # one the descent was last queried at
         omega = _omega(state, getattr(state.descent_state, "y", y))
         fresh = (state.num_steps_since_acceptance == 0) & (state.num_steps > 0)
-        ok = result == optx.RESULTS.successful
-        return done | ((omega <= self.ftol) & fresh & ok), result
+        # (a solve whose result is an error stops whatever ``done`` says: optimistix's loop runs
+        # only while the result is successful)
+        return done | ((omega <= self.ftol) & fresh), result
 
     def postprocess(self, fn, y, aux, args, options, state, tags, result):
         return self.inner.postprocess(fn, y, aux, args, options, state, tags, result)
@@ -340,8 +341,9 @@ def end_optimality(sol):
 
 def _array(value):
     """A strongly typed scalar of the default float dtype: solver settings held as arrays must
-    keep one type (a weakly typed ``jnp.asarray(0.1)`` would compile a second program)."""
-    return jnp.asarray(value, dtype=jnp.result_type(float))
+    keep one type (a weakly typed ``jnp.asarray(0.1)`` would compile a second program). A NumPy
+    array, traced like a JAX one: making it costs no conversion program in a fresh process."""
+    return np.asarray(value, dtype=jnp.result_type(float))
 
 
 def with_ftol(solver, ftol):
