@@ -190,8 +190,9 @@ def _compiles_of_second_order(caplog, call) -> list[str]:
 
 @pytest.mark.parametrize("x64", [True, False])
 def test_second_order_program_compiled_ahead_is_the_one_the_fit_then_calls(caplog, x64):
-    """``compile_second_ahead`` compiles, on its own thread and under the caller's (thread-local)
-    x64 setting, the very program that ``second_order`` then runs: the call compiles nothing.
+    """``compile_second_ahead`` traces here and compiles on its own thread, under the caller's
+    (thread-local) x64 setting, the very program that ``second_order`` then runs: the call
+    compiles nothing.
     Without it the same call compiles (the log check can fail). Sample counts of this test
     only, so no other test has compiled these shapes."""
     from brdffit.fitting.solve import compile_second_ahead, second_order

@@ -241,9 +241,13 @@ def best_of(problem: Problem, solver, data: FitData, zs, max_steps: int, scan: b
             events: Events) -> tuple[Solved, list[float]]:
     """Solve from every start in ``zs``; the best solve (:meth:`Solved.better_than`) and the
     cost of each start."""
-    # every stage after the first uses the second-order program: compile it meanwhile
+    # every stage after the first uses the second-order program: compile it meanwhile, unless
+    # the model builds a table per pass (gtr's numerical Λ): that program's compilation takes
+    # about as much memory as the solve's, and both at once took a cold gtr fit's peak over
+    # 2 GB (2.05 GB against 1.66-1.73 GB compiled one after the other)
     staged = len(start_plan(problem, data, scan)) > 1
-    ahead = compile_second_ahead(problem, zs[0], data) if staged else None
+    ahead = (compile_second_ahead(problem, zs[0], data)
+             if staged and problem.model.per_pass is None else None)
     run = Run(problem, data, cost_floor(problem, data), max_steps, events, ahead)
     ftol = float(solver.ftol)
     best, costs = None, []
