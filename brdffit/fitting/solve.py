@@ -232,12 +232,10 @@ def compile_second_ahead(problem: Problem, z, data: FitData) -> threading.Thread
         lowered = None
 
     def work():
-        if lowered is None:
-            return
         try:
             with jax.enable_x64(x64):
                 lowered.compile()
-        except Exception:  # noqa: BLE001
+        except Exception:  # noqa: BLE001 (likewise; also when the lowering failed)
             pass
 
     thread = threading.Thread(target=work, name="brdffit-second-order-compile", daemon=True)

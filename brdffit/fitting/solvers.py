@@ -219,11 +219,11 @@ class _BoxState(eqx.Module):
     omega: jax.Array
 
 
-def _queried(y, f_info, inner_state=None) -> _BoxState:
-    """The :class:`_BoxState` of a descent queried at ``y`` (``f_info`` its information)."""
+def _queried(y, f_info, kept) -> _BoxState:
+    """The :class:`_BoxState` of a descent queried at ``y`` (``f_info`` its information),
+    keeping ``kept`` (the information itself, or a wrapped descent's own state)."""
     jtj, g, cost = _gn_parts(f_info)
-    omega = optimality(jtj, g, cost, y)[0].astype(y.dtype)
-    return _BoxState(y, f_info if inner_state is None else inner_state, omega)
+    return _BoxState(y, kept, optimality(jtj, g, cost, y)[0].astype(y.dtype))
 
 
 def _unqueried(y, f_info) -> _BoxState:
@@ -257,7 +257,7 @@ class BoxDampedNewtonDescent(optx.DampedNewtonDescent):
 
     def query(self, y, f_info, state):
         del state
-        return _queried(y, f_info)
+        return _queried(y, f_info, f_info)
 
     def step(self, step_size, state):
         jtj, g, _ = _gn_parts(state.f_info)

@@ -242,9 +242,9 @@ def best_of(problem: Problem, solver, data: FitData, zs, max_steps: int, scan: b
     """Solve from every start in ``zs``; the best solve (:meth:`Solved.better_than`) and the
     cost of each start."""
     # every stage after the first uses the second-order program: compile it meanwhile, unless
-    # the model builds a table per pass (gtr's numerical Λ): that program's compilation takes
-    # about as much memory as the solve's, and both at once took a cold gtr fit's peak over
-    # 2 GB (2.05 GB against 1.66-1.73 GB compiled one after the other)
+    # the model builds a table per pass (gtr's numerical Λ): that compilation takes about as
+    # much memory as the solve's, and both at once exceed the 2 GB a fit may use
+    # (docs/design/fitting.md §15)
     staged = len(start_plan(problem, data, scan)) > 1
     ahead = (compile_second_ahead(problem, zs[0], data)
              if staged and problem.model.per_pass is None else None)
