@@ -179,13 +179,38 @@ def test_second_order_term_matches_finite_differences():
     np.testing.assert_allclose(second, ref, atol=1e-6 * np.max(np.abs(J.T @ J)))
 
 
+def test_second_order_of_a_stage_sums_its_leading_blocks_part_by_part():
+    """``second_order`` of a stage on ``target`` blocks is ``block_second_order`` over its
+    leading ``min(target, slab)`` blocks, scaled by ``target / blocks``: the program sums
+    parts of ``SECOND_PART_CELLS`` cells and stops after the part with the stage's last
+    block, whose later blocks it masks. (A ``per_pass`` model takes one masked slab; the
+    realistic fits of ``gtr`` cover it: its program takes 20 s to compile.)"""
+    from brdffit.fitting import solve as sv
+
+    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2, "f90": 0.6}
+    sel = select(ggx_samples(11 * 4096 - 100, x0, noise=0.3), get_loss("log"))  # 11 blocks
+    prob = dataclasses.replace(_problem("ggx", tuple(range(8)), x0), chunks=sel.chunks)
+    z = jnp.asarray(to_box(brdffit.get_model("ggx").flatten(x0), np.asarray(prob.slo),
+                           np.asarray(prob.shi), flat_log(brdffit.get_model("ggx"))))
+    block = sel.data.wi.shape[0] // prob.chunks
+    assert prob.chunks == 11 and sv._slab_blocks(prob, sel.data) == 8
+    assert sv.SECOND_PART_CELLS == 4 * block  # two parts of four blocks
+    direct = jax.jit(lambda p, v, d: p.block_second_order(v, d))
+    for target in (1, 3, 5, 8, 11):
+        blocks = min(target, 8)
+        ref = np.asarray(direct(prob, z, jax.tree.map(lambda a: a[: blocks * block], sel.data)))
+        got = sv.second_order(prob, z, sel.data, target)
+        np.testing.assert_allclose(got, ref * (target / blocks), rtol=1e-10,
+                                   atol=1e-10 * np.max(np.abs(ref)))
+
+
 def _compiles_of_second_order(caplog, call) -> list[str]:
     """The XLA compilations of the second-order program that ``call()`` made (JAX's log)."""
     caplog.clear()
     with jax.log_compiles(True), caplog.at_level(logging.WARNING):
         call()
     return [r.getMessage() for r in caplog.records
-            if "Finished XLA compilation" in r.getMessage() and "_jitted_second" in r.getMessage()]
+            if "Finished XLA compilation" in r.getMessage() and "jit(_second)" in r.getMessage()]
 
 
 @pytest.mark.parametrize("x64", [True, False])

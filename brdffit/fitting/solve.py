@@ -20,7 +20,7 @@ import numpy as np
 import optimistix as optx
 
 from .data import FitData
-from .normal_form import normal_form
+from .normal_form import normal_form, over_blocks
 from .problem import Problem
 from .solvers import COST_NOISE, end_optimality
 from .statistics import N_CELL_SUMS, metrics_from
@@ -49,6 +49,8 @@ CPU_COMPILER_OPTIONS = {
 #: convergence rate, never the answer. ``beckmann``'s term is noisy: 8,192 cells made some full
 #: fits crawl (``docs/design/fitting.md``).
 SECOND_CELLS = 32768
+#: The second-order term is summed over parts of this many cells (:func:`_second`).
+SECOND_PART_CELLS = 16384
 
 
 class Solved(eqx.Module):
@@ -188,21 +190,54 @@ def second_blocks(problem: Problem, data: FitData, target: int) -> int:
     return min(target, _slab_blocks(problem, data))
 
 
-@eqx.filter_jit
-def _jitted_second(problem: Problem, z, data, blocks):
+def _second(problem: Problem, z, data, blocks):
     """:meth:`Problem.block_second_order` of the first ``blocks`` blocks (traced: one program
-    for every stage), evaluated as one slab of the leading blocks that ``SECOND_CELLS`` cells
-    fill (static), the rows of the blocks past ``blocks`` given zero weight (a zero residual
-    adds nothing to ``Σ rᵢ∇²rᵢ``). One slab, not a loop over the blocks: a model whose
-    evaluation builds a table from its parameters (``gtr``'s numerical Λ) builds it once under
-    ``jax.hessian`` instead of once per block (``gtr``: 0.73 → 0.39 s on 32,768 cells)."""
+    for every stage), over the leading blocks that ``SECOND_CELLS`` cells fill (static); the
+    rows of the blocks past ``blocks`` get zero weight (a zero residual adds nothing to
+    ``Σ rᵢ∇²rᵢ``).
+
+    A model without ``per_pass`` tables sums the term over parts of ``SECOND_PART_CELLS``
+    cells, in a loop that stops after the part holding block ``blocks``. Forward over
+    reverse keeps each cell's intermediate values for every tangent, and the runtime
+    allocates the program's temporary buffer at every call: over the whole slab it was
+    52-143 MB (``ggx``, ``beckmann``, ``two-lobe-ggx``), more than the C library serves from
+    memory the process already holds (32 MB), so each call had it mapped and zero-filled
+    afresh, at the machine's cost per fresh page (``docs/design/fitting.md`` §16). A model
+    whose evaluation builds a table from its parameters (``gtr``'s numerical Λ) takes the
+    slab whole: under ``jax.hessian`` it then builds the table once instead of once per part
+    (``gtr``: 0.73 → 0.39 s on 32,768 cells)."""
     acc = jnp.promote_types(z.dtype, jnp.float32)
     block = data.wi.shape[0] // problem.chunks
-    rows = block * _slab_blocks(problem, data)
-    slab = jax.tree.map(lambda a: a[:rows], data)
-    keep = (jnp.arange(rows) < blocks * block)[:, None]
+    n_blocks = _slab_blocks(problem, data)
+    per = n_blocks  # blocks per part: the largest divisor of n_blocks that fits the part
+    if problem.model.per_pass is None:
+        per = max(d for d in range(1, n_blocks + 1)
+                  if n_blocks % d == 0 and d * block <= max(SECOND_PART_CELLS, block))
+    parts = n_blocks // per
+    slab = jax.tree.map(lambda a: a[: block * n_blocks], data)
+    keep = (jnp.arange(slab.wi.shape[0]) < blocks * block)[:, None]
     slab = eqx.tree_at(lambda d: d.sqrt_weight, slab, jnp.where(keep, slab.sqrt_weight, 0.0))
-    return problem.block_second_order(z, slab).astype(acc)
+    p = z.shape[0]
+    add = lambda total, part: total + problem.block_second_order(z, part).astype(acc)
+    return over_blocks(add, jnp.zeros((p, p), acc), slab, parts, (blocks + per - 1) // per)
+
+
+@functools.cache
+def _jitted_second_program(options: bool):
+    return eqx.filter_jit(_second, **(_compiler_options() if options else {}))
+
+
+def _second_program(problem: Problem):
+    """The compiled :func:`_second` for ``problem``: with the fitting program's XLA options
+    (:data:`CPU_COMPILER_OPTIONS`), except for a model with ``per_pass`` tables, whose
+    one-slab Hessian compiled 1.3x longer and ran 1.2x slower with them (``gtr``: 26 against
+    20 s, 0.34 against 0.26 s)."""
+    return _jitted_second_program(problem.model.per_pass is None)
+
+
+def _jitted_second(problem: Problem, z, data, blocks):
+    """:func:`_second`, compiled (:func:`_second_program`)."""
+    return _second_program(problem)(problem, z, data, blocks)
 
 
 def compile_second_ahead(problem: Problem, z, data: FitData) -> threading.Thread:
@@ -227,7 +262,7 @@ def compile_second_ahead(problem: Problem, z, data: FitData) -> threading.Thread
     # thread's compilation occupies the cores, it costs 0.03 s instead of 0.25-0.45 s.
     _ = optx.RESULTS.successful == optx.RESULTS.successful
     try:
-        lowered = _jitted_second.lower(problem, jnp.asarray(z), data, np.int32(1))
+        lowered = _second_program(problem).lower(problem, jnp.asarray(z), data, np.int32(1))
     except Exception:  # noqa: BLE001 (only time is at stake; the call compiles instead)
         lowered = None
 
