@@ -1,0 +1,96 @@
+"""Benchmark: the second-order program of a fit, per call, against the one-slab program it replaced.
+
+    .venv/bin/python benchmarks/bench_second_order.py [--models ggx,beckmann,two-lobe-ggx]
+        [--input TABLE.binary] [--repeat 12]
+
+Each Newton round of a fit measures ``Σ rᵢ∇²rᵢ`` on the leading 32,768 cells
+(:func:`brdffit.fitting.solve.second_order`). The fit's program sums it over parts of
+``SECOND_PART_CELLS`` cells with the fitting program's XLA options (``solve._second``); the
+reference is the program it replaced: ``Problem.block_second_order`` over the whole slab in
+one piece, compiled without options (``docs/design/fitting.md`` §16). Both are compiled once,
+then called ``--repeat`` times, interleaved, at the fit's start point on a full table (a
+synthetic one of the model at its defaults, or ``--input``, e.g. a realistic table written by
+``../shared/realistic/render.py``). Printed per model and program: min and median
+milliseconds per call, the memory each call touched for the first time (minor page faults ×
+4 KiB: a temporary buffer the C library maps afresh at every call shows here), the largest
+difference between the two terms relative to the term's largest entry, and the ratio of the
+reference's min to the fit's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import statistics
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+jax.config.update("jax_enable_x64", True)
+
+from brdffit.fitting import solve  # noqa: E402
+from brdffit.fitting.fitter import prepare  # noqa: E402
+from brdffit.fitting.options import Settings, fit_options  # noqa: E402
+from brdffit.io import read_path  # noqa: E402
+from brdffit.models.evaluate import evaluate_model  # noqa: E402
+from brdffit.models.registry import get_model  # noqa: E402
+from data_formats.merl import synthesize  # noqa: E402
+
+
+def _faults() -> int:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+
+
+def _one_slab(problem, z, data, blocks):
+    """The replaced program: the slab's rows past ``blocks`` blocks weighted zero, one piece."""
+    block = data.wi.shape[0] // problem.chunks
+    rows = block * solve._slab_blocks(problem, data)
+    slab = jax.tree.map(lambda a: a[:rows], data)
+    keep = (jnp.arange(rows) < blocks * block)[:, None]
+    slab = type(slab)(slab.wi, slab.wo, slab.rgb, slab.target,
+                      jnp.where(keep, slab.sqrt_weight, 0.0))
+    return problem.block_second_order(z, slab)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--models", default="ggx,beckmann,two-lobe-ggx")
+    ap.add_argument("--input", default=None, help="a MERL table to use instead of synthetic ones")
+    ap.add_argument("--repeat", type=int, default=12)
+    opts = ap.parse_args()
+    given = None if opts.input is None else read_path(opts.input)
+    for name in opts.models.split(","):
+        model = get_model(name)
+        table = given or synthesize(lambda wi, wo: evaluate_model(model, None, wi, wo), name=name)
+        prep = prepare(table, model, Settings.of(fit_options(None)))
+        pb, data, z = prep.problem, prep.selection.data, jnp.asarray(prep.z0)
+        blocks = np.int32(solve.second_blocks(pb, data, pb.chunks))
+        reference = jax.jit(_one_slab)
+        calls = {"fit's (parts, options)": lambda: solve._jitted_second(pb, z, data, blocks),
+                 "one slab (replaced)": lambda: reference(pb, z, data, blocks)}
+        terms = {k: np.asarray(call()) for k, call in calls.items()}  # compiles
+        times = {k: [] for k in calls}
+        fresh = {k: [] for k in calls}
+        for _ in range(opts.repeat):
+            for k, call in calls.items():
+                f, t = _faults(), time.perf_counter()
+                jax.block_until_ready(call())
+                times[k].append(time.perf_counter() - t)
+                fresh[k].append((_faults() - f) * 4 / 1024)
+        ref = terms["one slab (replaced)"]
+        diff = np.max(np.abs(terms["fit's (parts, options)"] - ref)) / np.max(np.abs(ref))
+        for k in calls:
+            print(f"{name:14s} {k:24s} min {min(times[k]) * 1e3:7.1f} ms  median "
+                  f"{statistics.median(times[k]) * 1e3:7.1f} ms  fresh "
+                  f"{statistics.median(fresh[k]):5.0f} MB per call")
+        ratio = min(times["one slab (replaced)"]) / min(times["fit's (parts, options)"])
+        print(f"{name:14s} the replaced program's min / the fit's: {ratio:.2f}x; "
+              f"terms differ by {diff:.1e} of the largest entry")
+    print(f"load average {os.getloadavg()[0]:.2f} (cores {os.cpu_count()})")
+
+
+if __name__ == "__main__":
+    main()
