@@ -209,7 +209,9 @@ def _second(problem: Problem, z, data, blocks):
     acc = jnp.promote_types(z.dtype, jnp.float32)
     block = data.wi.shape[0] // problem.chunks
     n_blocks = _slab_blocks(problem, data)
-    per = n_blocks  # blocks per part: the largest divisor of n_blocks that fits the part
+    # blocks per part: all of them for a per_pass model, else the largest divisor of n_blocks
+    # whose cells fit in SECOND_PART_CELLS (one block where a block alone is larger)
+    per = n_blocks
     if problem.model.per_pass is None:
         per = max(d for d in range(1, n_blocks + 1)
                   if n_blocks % d == 0 and d * block <= max(SECOND_PART_CELLS, block))
@@ -235,18 +237,13 @@ def _second_program(problem: Problem):
     return _jitted_second_program(problem.model.per_pass is None)
 
 
-def _jitted_second(problem: Problem, z, data, blocks):
-    """:func:`_second`, compiled (:func:`_second_program`)."""
-    return _second_program(problem)(problem, z, data, blocks)
-
-
 def compile_second_ahead(problem: Problem, z, data: FitData) -> threading.Thread:
     """Trace and lower the second-order program of :func:`second_order` for ``problem`` and
     ``data`` here, then start its XLA compilation on a thread, and return the thread; nothing
     is run, and the caller must ``join`` it before its first :func:`second_order` (two
     compiles of one program would each be paid).
 
-    ``lower()`` and ``compile()`` fill the caches that the first call of :func:`_jitted_second`
+    ``lower()`` and ``compile()`` fill the caches that the first call of :func:`_second_program`
     then finds (its trace, its lowering and the executable), so a cold fit compiles this program
     while the solve's own program is being traced and compiled, instead of after the first
     stage. Tracing and lowering are Python, which holds the interpreter lock: on a thread they
@@ -283,6 +280,6 @@ def second_order(problem: Problem, z, data: FitData, target: int) -> np.ndarray:
     :func:`second_blocks` of them and scaled to ``target`` (the sum grows with the number of
     cells); zeros if it is not finite."""
     blocks = second_blocks(problem, data, target)
-    s = np.asarray(_jitted_second(problem, jnp.asarray(z), data, np.int32(blocks)))
+    s = np.asarray(_second_program(problem)(problem, jnp.asarray(z), data, np.int32(blocks)))
     s = s * (target / blocks)
     return s if np.all(np.isfinite(s)) else np.zeros_like(s)
