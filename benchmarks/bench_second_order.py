@@ -1,20 +1,21 @@
-"""Benchmark: the second-order program of a fit, per call, against the one-slab program it replaced.
+"""Benchmark: the second-order program of a fit against the exact term's program.
 
     .venv/bin/python benchmarks/bench_second_order.py [--models ggx,beckmann,two-lobe-ggx]
         [--input TABLE.binary] [--repeat 12]
 
 Each Newton round of a fit measures ``Σ rᵢ∇²rᵢ`` on the leading 32,768 cells
-(:func:`brdffit.fitting.solve.second_order`). The fit's program sums it over parts of
-``SECOND_PART_CELLS`` cells with the fitting program's XLA options (``solve._second``); the
-reference is the program it replaced: ``Problem.block_second_order`` over the whole slab in
-one piece, compiled without options (``docs/design/fitting.md`` §16). Both are compiled once,
-then called ``--repeat`` times, interleaved, at the fit's start point on a full table (a
-synthetic one of the model at its defaults, or ``--input``, e.g. a realistic table written by
-``../shared/realistic/render.py``). Printed per model and program: min and median
-milliseconds per call, the memory each call touched for the first time (minor page faults ×
-4 KiB: a temporary buffer the C library maps afresh at every call shows here), the largest
-difference between the two terms relative to the term's largest entry, and the ratio of the
-reference's min to the fit's.
+(:func:`brdffit.fitting.solve.second_order`). The fit's program takes forward differences of
+exact first derivatives (``solve._second``); the reference is the exact term,
+``Problem.block_second_order`` (``jax.hessian``) over the whole slab in one piece, compiled
+without options (``docs/design/fitting.md`` §16–§17). Each is compiled by its first call
+(timed: the seconds a cold fit pays for it), then called ``--repeat`` times, interleaved, at
+the fit's start point on a full table (a synthetic one of the model at its defaults, or
+``--input``, e.g. a realistic table written by ``../shared/realistic/render.py``). Printed
+per model and program: the first call's seconds, min and median milliseconds per call, the
+memory each call touched for the first time (minor page faults × 4 KiB: a temporary buffer
+the C library maps afresh at every call shows here), the largest difference between the two
+terms relative to the term's largest entry, and the ratios of the reference's figures to the
+fit's.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ def _faults() -> int:
 
 
 def _one_slab(problem, z, data, blocks):
-    """The replaced program: the slab's rows past ``blocks`` blocks weighted zero, one piece."""
+    """The exact term: the slab's rows past ``blocks`` blocks weighted zero, one piece."""
     block = data.wi.shape[0] // problem.chunks
     rows = block * solve._slab_blocks(problem, data)
     slab = jax.tree.map(lambda a: a[:rows], data)
@@ -69,9 +70,13 @@ def main() -> None:
         pb, data, z = prep.problem, prep.selection.data, jnp.asarray(prep.z0)
         blocks = np.int32(solve.second_blocks(pb, data, pb.chunks))
         reference = jax.jit(_one_slab)
-        calls = {"fit's (parts, options)": lambda: solve._second_program(pb)(pb, z, data, blocks),
-                 "one slab (replaced)": lambda: reference(pb, z, data, blocks)}
-        terms = {k: np.asarray(call()) for k, call in calls.items()}  # compiles
+        calls = {"fit's (differences)": lambda: solve._second_program()(pb, z, data, blocks),
+                 "exact (jax.hessian)": lambda: reference(pb, z, data, blocks)}
+        terms, first = {}, {}
+        for k, call in calls.items():  # compiles
+            t = time.perf_counter()
+            terms[k] = np.asarray(call())
+            first[k] = time.perf_counter() - t
         times = {k: [] for k in calls}
         fresh = {k: [] for k in calls}
         for _ in range(opts.repeat):
@@ -80,15 +85,15 @@ def main() -> None:
                 jax.block_until_ready(call())
                 times[k].append(time.perf_counter() - t)
                 fresh[k].append((_faults() - f) * 4 / 1024)
-        ref = terms["one slab (replaced)"]
-        diff = np.max(np.abs(terms["fit's (parts, options)"] - ref)) / np.max(np.abs(ref))
+        fit, exact = calls
+        diff = np.max(np.abs(terms[fit] - terms[exact])) / np.max(np.abs(terms[exact]))
         for k in calls:
-            print(f"{name:14s} {k:24s} min {min(times[k]) * 1e3:7.1f} ms  median "
-                  f"{statistics.median(times[k]) * 1e3:7.1f} ms  fresh "
-                  f"{statistics.median(fresh[k]):5.0f} MB per call")
-        ratio = min(times["one slab (replaced)"]) / min(times["fit's (parts, options)"])
-        print(f"{name:14s} the replaced program's min / the fit's: {ratio:.2f}x; "
-              f"terms differ by {diff:.1e} of the largest entry")
+            print(f"{name:14s} {k:20s} first call {first[k]:6.2f} s  min "
+                  f"{min(times[k]) * 1e3:7.1f} ms  median {statistics.median(times[k]) * 1e3:7.1f}"
+                  f" ms  fresh {statistics.median(fresh[k]):5.0f} MB per call")
+        print(f"{name:14s} exact / fit's: first call {first[exact] / first[fit]:.2f}x, min "
+              f"{min(times[exact]) / min(times[fit]):.2f}x; terms differ by {diff:.1e} of the "
+              f"largest entry")
     print(f"load average {os.getloadavg()[0]:.2f} (cores {os.cpu_count()})")
 
 

@@ -179,12 +179,12 @@ def test_second_order_term_matches_finite_differences():
     np.testing.assert_allclose(second, ref, atol=1e-6 * np.max(np.abs(J.T @ J)))
 
 
-def test_second_order_of_a_stage_sums_its_leading_blocks_part_by_part():
-    """``second_order`` of a stage on ``target`` blocks is ``block_second_order`` over its
-    leading ``min(target, slab)`` blocks, scaled by ``target / blocks``: the program sums
-    parts of ``SECOND_PART_CELLS`` cells and stops after the part with the stage's last
-    block, whose later blocks it masks. (A ``per_pass`` model takes one masked slab; the
-    realistic fits of ``gtr`` cover it: its program takes 20 s to compile.)"""
+def test_second_order_of_a_stage_is_the_exact_term_of_its_leading_blocks():
+    """``second_order`` of a stage on ``target`` blocks (forward differences of exact
+    gradients) is the exact ``block_second_order`` (``jax.hessian``) over its leading
+    ``min(target, slab)`` blocks, scaled by ``target / blocks``, to the differences' accuracy;
+    also with coordinates on both bounds of the box, which are stepped inwards. (A
+    ``per_pass`` model's forward-mode gradients: the ``gtr`` test below.)"""
     from brdffit.fitting import solve as sv
 
     x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2, "f90": 0.6}
@@ -194,14 +194,48 @@ def test_second_order_of_a_stage_sums_its_leading_blocks_part_by_part():
                            np.asarray(prob.shi), flat_log(brdffit.get_model("ggx"))))
     block = sel.data.wi.shape[0] // prob.chunks
     assert prob.chunks == 11 and sv._slab_blocks(prob, sel.data) == 8
-    assert sv.SECOND_PART_CELLS == 4 * block  # two parts of four blocks
     direct = jax.jit(lambda p, v, d: p.block_second_order(v, d))
-    for target in (1, 3, 5, 8, 11):
-        blocks = min(target, 8)
-        ref = np.asarray(direct(prob, z, jax.tree.map(lambda a: a[: blocks * block], sel.data)))
-        got = sv.second_order(prob, z, sel.data, target)
-        np.testing.assert_allclose(got, ref * (target / blocks), rtol=1e-10,
-                                   atol=1e-10 * np.max(np.abs(ref)))
+    on_bounds = z.at[0].set(0.0).at[4].set(1.0).at[7].set(1.0)
+    for point in (z, on_bounds):
+        for target in (1, 3, 5, 8, 11):
+            blocks = min(target, 8)
+            ref = np.asarray(direct(prob, point, jax.tree.map(lambda a: a[: blocks * block], sel.data)))
+            got = sv.second_order(prob, point, sel.data, target)
+            np.testing.assert_allclose(got, ref * (target / blocks), rtol=0,
+                                       atol=1e-5 * np.max(np.abs(ref)) * (target / blocks))
+    # the steps: √ε, towards the inside of the box
+    h = np.asarray(sv.second_steps(on_bounds, "float64"))
+    assert h[0] > 0 and h[4] < 0 and h[7] < 0 and np.all(np.abs(h) == np.sqrt(np.finfo(float).eps))
+    assert np.all(np.abs(np.asarray(sv.second_steps(on_bounds, "float32")))
+                  == np.sqrt(np.finfo(np.float32).eps))
+    # a model evaluated in float32 takes float32's step (float64's would vanish in rounding)
+    prob32 = dataclasses.replace(prob, compute_dtype="float32")
+    ref = np.asarray(direct(prob32, z, jax.tree.map(lambda a: a[: 8 * block], sel.data)))
+    np.testing.assert_allclose(sv.second_order(prob32, z, sel.data, 8), ref, rtol=0,
+                               atol=3e-2 * np.max(np.abs(ref)))
+
+
+def test_second_order_of_a_model_with_per_pass_tables_is_the_exact_term():
+    """``gtr`` builds its Λ table once per point (its gradients by forward mode, the table's
+    tangent included) and its forward differences agree with ``jax.hessian``'s exact term."""
+    from brdffit.fitting import solve as sv
+
+    from brdffit.models.evaluate import evaluate_model
+
+    model = brdffit.get_model("gtr")
+    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.25, "gamma": 1.6,
+          "f90": 0.6}
+    rng = np.random.default_rng(3)
+    wi, wo = hemisphere(3000, rng), hemisphere(3000, rng)
+    rgb = evaluate_model(model, x0, wi, wo) * np.exp(rng.normal(0, 0.3, (3000, 3)))
+    sel = select(SampleSet(wi, wo, rgb, np.ones(3000, bool), name="noisy gtr"), get_loss("log"))
+    prob = dataclasses.replace(_problem("gtr", tuple(range(9)), x0), chunks=sel.chunks)
+    z = jnp.asarray(to_box(model.flatten(x0), np.asarray(prob.slo), np.asarray(prob.shi),
+                           flat_log(model)))
+    ref = np.asarray(jax.jit(lambda q, v, d: q.block_second_order(v, d))(prob, z, sel.data))
+    got = sv.second_order(prob, z, sel.data, sel.chunks)
+    assert np.max(np.abs(ref)) > 0
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-5 * np.max(np.abs(ref)))
 
 
 def _compiles_of_second_order(caplog, call) -> list[str]:

@@ -108,21 +108,50 @@ class Problem(eqx.Module):
 
     def block_second_order(self, u, data: FitData):
         r"""``Σ_i r_i ∇²r_i`` over one block of cells (derivatives with respect to ``u``): the
-        term of the Hessian of ``½Σr²`` that Gauss–Newton drops.
+        term of the Hessian of ``½Σr²`` that Gauss–Newton drops, exactly.
 
         On a table the model fits exactly it vanishes; on real materials (large residuals) it
-        is what makes Gauss–Newton converge only linearly, and the solver adds an estimate of
-        it to ``JᵀJ`` (:func:`brdffit.fitting.normal_form.compress_newton`). It is the Hessian
-        at ``u`` of ``g(v) = Σ_i r̄_i r_i(v)`` with the residuals ``r̄ = r(u)`` held fixed
-        (``∇²g = Σ_i r̄_i ∇²r_i``), built with ``jax.hessian`` (forward over reverse): a few
-        model evaluations per parameter, computed on a subset of the cells only. (The same
-        term as the Hessian of ``½Σr²`` minus ``JᵀJ``, without the Jacobian or the
-        cancellation.)
+        is what makes Gauss–Newton converge only linearly. It is the Hessian at ``u`` of
+        ``g(v) = Σ_i r̄_i r_i(v)`` with the residuals ``r̄ = r(u)`` held fixed
+        (``∇²g = Σ_i r̄_i ∇²r_i``), built with ``jax.hessian`` (forward over reverse). The fit
+        itself uses forward differences of :meth:`block_gradient_held` instead
+        (:func:`brdffit.fitting.solve.second_order`, much cheaper to compile); this exact form
+        is their reference (tests, ``benchmarks/bench_second_order.py``).
         """
         acc = jnp.promote_types(u.dtype, jnp.float32)
         res = lambda v: self.residual(v, data).astype(acc)
         held = jax.lax.stop_gradient(res(u))
         return jax.hessian(lambda v: jnp.sum(held * res(v)))(u)
+
+    def block_residual(self, u, data: FitData, tables=None):
+        """The residual ``(n, 3)`` at ``u`` of one block; with ``tables`` (from
+        :meth:`pass_tables` at ``u``) the model is ``per_pass.apply`` with them."""
+        if tables is None:
+            return self.residual(u, data).reshape(-1, 3)
+        dt = jnp.dtype(self.compute_dtype)
+        params = self.model.unflatten(self.full_vector(self.physical(u)).astype(dt))
+        pred = self.model.per_pass.apply(params, tables[0], data.wi.astype(dt), data.wo.astype(dt))
+        return self._residual_of_pred(pred, data).reshape(-1, 3)
+
+    def block_gradient_held(self, u, data: FitData, r_bar, tables=None):
+        r"""``Σ_i r̄_i ∇r_i(u) = J(u)ᵀ r̄`` over one block of cells: the gradient at ``u`` of
+        ``g(v) = Σ_i r̄_i r_i(v)`` with the residuals ``r̄`` (``(n, 3)``, e.g. ``r`` at another
+        point) held fixed, in ``r̄``'s dtype. Its forward differences in ``u`` with
+        ``r̄ = r(u₀)`` give ``Σ_i r_i(u₀) ∇²r_i(u₀)`` (:func:`brdffit.fitting.solve.second_order`).
+
+        Exact first derivatives: by reverse mode (one evaluation of the model and its
+        adjoint), or, for a model with ``per_pass`` tables given ``tables`` (from
+        :meth:`pass_tables` at ``u``), by forward mode from the tangent fields of
+        :meth:`tangents_x`, through which the tables' tangents enter (reverse mode would
+        rebuild the tables for every block: ``gtr`` 0.42 s per slab against 0.09 s).
+        """
+        acc = r_bar.dtype
+        if tables is None:
+            return jax.grad(lambda v: jnp.sum(r_bar * self.block_residual(v, data).astype(acc)))(u)
+        x, dxdu = jax.jvp(self.physical, (u,), (jnp.ones_like(u),))  # the map is elementwise
+        _, _, fields, where = self.tangents_x(x, data, tables)
+        tr = jnp.stack([jnp.sum(t.astype(acc) * r_bar, axis=0) for t in fields])
+        return jnp.einsum("ikc,kc->i", _placement_r(where, len(fields)), tr) * dxdu.astype(acc)
 
     def tangent_layout(self) -> tuple[tuple[str, tuple[int, ...], bool], ...]:
         """Per model parameter with free components: ``(name, free components, per_channel)``.
@@ -253,14 +282,27 @@ def _placement(where, n_fields: int, pairs):
     channel ``c``.
     """
     p = len(where)
-    mask = np.zeros((p, 3))
-    for i, (_k, c) in enumerate(where):
-        mask[i] = 1.0 if c is None else np.eye(3)[c]
+    mask = _channel_mask(where)
     index = {pair: q for q, pair in enumerate(pairs)}
     place = np.zeros((p, p, len(pairs), 3))
-    place_r = np.zeros((p, n_fields, 3))
     for i, (ki, _) in enumerate(where):
-        place_r[i, ki] = mask[i]
         for j, (kj, _) in enumerate(where):
             place[i, j, index[(min(ki, kj), max(ki, kj))]] = mask[i] * mask[j]
-    return place, place_r
+    return place, _placement_r(where, n_fields)
+
+
+def _channel_mask(where) -> np.ndarray:
+    """``mask[i, c] = 1`` when column ``i`` includes channel ``c``."""
+    mask = np.zeros((len(where), 3))
+    for i, (_k, c) in enumerate(where):
+        mask[i] = 1.0 if c is None else np.eye(3)[c]
+    return mask
+
+
+def _placement_r(where, n_fields: int) -> np.ndarray:
+    """``place_r[i, k, c] = 1`` when column ``i`` is field ``k`` on channel ``c``."""
+    mask = _channel_mask(where)
+    place_r = np.zeros((len(where), n_fields, 3))
+    for i, (ki, _) in enumerate(where):
+        place_r[i, ki] = mask[i]
+    return place_r

@@ -49,8 +49,6 @@ CPU_COMPILER_OPTIONS = {
 #: convergence rate, never the answer. ``beckmann``'s term is noisy: 8,192 cells made some full
 #: fits crawl (``docs/design/fitting.md``).
 SECOND_CELLS = 32768
-#: The second-order term is summed over parts of this many cells (:func:`_second`).
-SECOND_PART_CELLS = 16384
 
 
 class Solved(eqx.Module):
@@ -190,51 +188,54 @@ def second_blocks(problem: Problem, data: FitData, target: int) -> int:
     return min(target, _slab_blocks(problem, data))
 
 
-def _second(problem: Problem, z, data, blocks):
-    """:meth:`Problem.block_second_order` of the first ``blocks`` blocks (traced: one program
-    for every stage), over the leading blocks that ``SECOND_CELLS`` cells fill (static); the
-    rows of the blocks past ``blocks`` get zero weight (a zero residual adds nothing to
-    ``Σ rᵢ∇²rᵢ``).
+def second_steps(z, compute_dtype):
+    """The forward-difference steps of :func:`_second` in the box coordinates ``z``: ``√ε`` of
+    the model's compute dtype (1.5e-8 in float64, 3.5e-4 in float32), towards the inside of the
+    box ``[0, 1]`` (a coordinate on a bound is stepped off it, never past it)."""
+    step = np.sqrt(np.finfo(np.dtype(compute_dtype)).eps)
+    return jnp.where(z > 0.5, -step, step).astype(z.dtype)
 
-    A model without ``per_pass`` tables sums the term over parts of ``SECOND_PART_CELLS``
-    cells, in a loop that stops after the part holding block ``blocks``. Forward over
-    reverse keeps each cell's intermediate values for every tangent, and the runtime
-    allocates the program's temporary buffer at every call: over the whole slab it was
-    52-143 MB (``ggx``, ``beckmann``, ``two-lobe-ggx``), more than the C library serves from
-    memory the process already holds (32 MB), so each call had it mapped and zero-filled
-    afresh, at the machine's cost per fresh page (``docs/design/fitting.md`` §16). A model
-    whose evaluation builds a table from its parameters (``gtr``'s numerical Λ) takes the
-    slab whole: under ``jax.hessian`` it then builds the table once instead of once per part
-    (``gtr``: 0.73 → 0.39 s on 32,768 cells)."""
+
+def _second(problem: Problem, z, data, blocks):
+    r"""``S = Σ rᵢ∇²rᵢ`` at ``z`` over the first ``blocks`` blocks (traced: one program for
+    every stage) of the leading blocks that ``SECOND_CELLS`` cells fill (static).
+
+    Forward differences of exact first derivatives: with the residuals ``r̄ = r(z)`` held
+    fixed and ``G(v) = J(v)ᵀ r̄`` (:meth:`Problem.block_gradient_held`), ``∂G/∂v =
+    Σ r̄ᵢ∇²rᵢ(v)``, so column ``k`` of ``S`` is ``(G(z + hₖeₖ) − G(z)) / hₖ + O(hₖ)``
+    (:func:`second_steps`), symmetrised. The ``p + 1`` points are one ``vmap`` in one loop
+    over the blocks; a model with ``per_pass`` tables builds them once per point, before the
+    loop. Against the exact term (:meth:`Problem.block_second_order`, ``jax.hessian``) on
+    realistic tables: within 1e-6 of its largest entry in float64 and 2–4e-2 in float32,
+    while measuring it on ``SECOND_CELLS`` cells instead of the whole table already moves it
+    by 4–19e-2 (it only shapes the solver's quadratic model). In exchange its program
+    compiles in less time than ``jax.hessian``'s (a cold fit compiles it beside the solve's,
+    on the same two cores), runs faster and maps no fresh memory per call
+    (``docs/design/fitting.md`` §17)."""
     acc = jnp.promote_types(z.dtype, jnp.float32)
     block = data.wi.shape[0] // problem.chunks
     n_blocks = _slab_blocks(problem, data)
-    # blocks per part: all of them for a per_pass model, else the largest divisor of n_blocks
-    # whose cells fit in SECOND_PART_CELLS (one block where a block alone is larger)
-    per = n_blocks
-    if problem.model.per_pass is None:
-        per = max(d for d in range(1, n_blocks + 1)
-                  if n_blocks % d == 0 and d * block <= max(SECOND_PART_CELLS, block))
-    parts = n_blocks // per
     slab = jax.tree.map(lambda a: a[: block * n_blocks], data)
-    keep = (jnp.arange(slab.wi.shape[0]) < blocks * block)[:, None]
-    slab = eqx.tree_at(lambda d: d.sqrt_weight, slab, jnp.where(keep, slab.sqrt_weight, 0.0))
-    p = z.shape[0]
-    add = lambda total, part: total + problem.block_second_order(z, part).astype(acc)
-    return over_blocks(add, jnp.zeros((p, p), acc), slab, parts, (blocks + per - 1) // per)
+    h = second_steps(z, problem.compute_dtype)
+    points = jnp.concatenate([z[None, :], z[None, :] + jnp.diag(h)])
+    tables = problem.pass_tables(z)
+    tables_at = None if tables is None else jax.vmap(problem.pass_tables)(points)
+
+    def add(total, d):
+        r_bar = problem.block_residual(z, d, tables).astype(acc)
+        at = lambda v, tab: problem.block_gradient_held(v, d, r_bar, tab)
+        return total + jax.vmap(at)(points, tables_at)
+
+    g = over_blocks(add, jnp.zeros((z.shape[0] + 1, z.shape[0]), acc), slab, n_blocks, blocks)
+    s = (g[1:] - g[0]) / h[:, None].astype(acc)
+    return 0.5 * (s + s.T)
 
 
 @functools.cache
-def _jitted_second_program(options: bool):
-    return eqx.filter_jit(_second, **(_compiler_options() if options else {}))
-
-
-def _second_program(problem: Problem):
-    """The compiled :func:`_second` for ``problem``: with the fitting program's XLA options
-    (:data:`CPU_COMPILER_OPTIONS`), except for a model with ``per_pass`` tables, whose
-    one-slab Hessian compiled 1.3x longer and ran 1.2x slower with them (``gtr``: 26 against
-    20 s, 0.34 against 0.26 s)."""
-    return _jitted_second_program(problem.model.per_pass is None)
+def _second_program():
+    """The compiled :func:`_second`, with the fitting program's XLA options
+    (:data:`CPU_COMPILER_OPTIONS`)."""
+    return eqx.filter_jit(_second, **_compiler_options())
 
 
 def compile_second_ahead(problem: Problem, z, data: FitData) -> threading.Thread:
@@ -259,7 +260,7 @@ def compile_second_ahead(problem: Problem, z, data: FitData) -> threading.Thread
     # thread's compilation occupies the cores, it costs 0.03 s instead of 0.25-0.45 s.
     _ = optx.RESULTS.successful == optx.RESULTS.successful
     try:
-        lowered = _second_program(problem).lower(problem, jnp.asarray(z), data, np.int32(1))
+        lowered = _second_program().lower(problem, jnp.asarray(z), data, np.int32(1))
     except Exception:  # noqa: BLE001 (only time is at stake; the call compiles instead)
         lowered = None
 
@@ -280,6 +281,6 @@ def second_order(problem: Problem, z, data: FitData, target: int) -> np.ndarray:
     :func:`second_blocks` of them and scaled to ``target`` (the sum grows with the number of
     cells); zeros if it is not finite."""
     blocks = second_blocks(problem, data, target)
-    s = np.asarray(_second_program(problem)(problem, jnp.asarray(z), data, np.int32(blocks)))
+    s = np.asarray(_second_program()(problem, jnp.asarray(z), data, np.int32(blocks)))
     s = s * (target / blocks)
     return s if np.all(np.isfinite(s)) else np.zeros_like(s)
