@@ -242,9 +242,9 @@ def best_of(problem: Problem, solver, data: FitData, zs, max_steps: int, scan: b
     """Solve from every start in ``zs``; the best solve (:meth:`Solved.better_than`) and the
     cost of each start."""
     # every stage after the first uses the second-order program: compile it meanwhile, unless
-    # the model builds a table per pass (gtr's numerical Λ): that compilation takes about as
-    # much memory as the solve's, and both at once exceed the 2 GB a fit may use
-    # (docs/design/fitting.md §15)
+    # the model builds a table per pass (gtr's numerical Λ): its solve program's compilation
+    # keeps both cores busy for ~10 s, and one beside it gained nothing (cold gtr CLI fits
+    # 17.9-19.3 s either way) for 0.25-0.35 GB more memory (docs/design/fitting.md §15, §17)
     staged = len(start_plan(problem, data, scan)) > 1
     ahead = (compile_second_ahead(problem, zs[0], data)
              if staged and problem.model.per_pass is None else None)
