@@ -1,7 +1,7 @@
 """Benchmark: the second-order program of a fit against the exact term's program.
 
     .venv/bin/python benchmarks/bench_second_order.py [--models ggx,beckmann,two-lobe-ggx]
-        [--input TABLE.binary] [--repeat 12]
+        [--input TABLE.binary] [--repeat 12] [--at start|optimum] [--precision float64|float32]
 
 Each Newton round of a fit measures ``Σ rᵢ∇²rᵢ`` on the leading 32,768 cells
 (:func:`brdffit.fitting.solve.second_order`). The fit's program takes forward differences of
@@ -15,7 +15,9 @@ per model and program: the first call's seconds, min and median milliseconds per
 memory each call touched for the first time (minor page faults × 4 KiB: a temporary buffer
 the C library maps afresh at every call shows here), the largest difference between the two
 terms relative to the term's largest entry, and the ratios of the reference's figures to the
-fit's.
+fit's. ``--at optimum`` measures at the end point of a default fit instead of the start point;
+``--precision float32`` evaluates the model in float32 (the differences then take float32's
+step).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import numpy as np
 
 jax.config.update("jax_enable_x64", True)
 
+import brdffit  # noqa: E402
 from brdffit.fitting import solve  # noqa: E402
 from brdffit.fitting.fitter import prepare  # noqa: E402
 from brdffit.fitting.options import Settings, fit_options  # noqa: E402
@@ -61,12 +64,19 @@ def main() -> None:
     ap.add_argument("--models", default="ggx,beckmann,two-lobe-ggx")
     ap.add_argument("--input", default=None, help="a MERL table to use instead of synthetic ones")
     ap.add_argument("--repeat", type=int, default=12)
+    ap.add_argument("--at", choices=("start", "optimum"), default="start")
+    ap.add_argument("--precision", choices=("float64", "float32"), default="float64")
     opts = ap.parse_args()
     given = None if opts.input is None else read_path(opts.input)
     for name in opts.models.split(","):
         model = get_model(name)
         table = given or synthesize(lambda wi, wo: evaluate_model(model, None, wi, wo), name=name)
-        prep = prepare(table, model, Settings.of(fit_options(None)))
+        init = None
+        if opts.at == "optimum":
+            init = brdffit.fit(table, model, precision=opts.precision, throw=False).params
+            jax.clear_caches()  # the first call below compiles again
+        prep = prepare(table, model,
+                       Settings.of(fit_options(None, precision=opts.precision, init=init)))
         pb, data, z = prep.problem, prep.selection.data, jnp.asarray(prep.z0)
         blocks = np.int32(solve.second_blocks(pb, data, pb.chunks))
         reference = jax.jit(_one_slab)
