@@ -219,7 +219,6 @@ def test_second_order_of_a_model_with_per_pass_tables_is_the_exact_term():
     """``gtr`` builds its Λ table once per point (its gradients by forward mode, the table's
     tangent included) and its forward differences agree with ``jax.hessian``'s exact term."""
     from brdffit.fitting import solve as sv
-
     from brdffit.models.evaluate import evaluate_model
 
     model = brdffit.get_model("gtr")

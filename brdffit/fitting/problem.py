@@ -71,20 +71,25 @@ class Problem(eqx.Module):
         x[list(self.free)] = to_physical_host(u, self.slo, self.shi, np.asarray(self.log, bool))
         return x
 
-    def predict(self, x_free, data: FitData):
-        """Model ``f_r`` ``(n, 3)`` on the selected cells, in the compute dtype."""
+    def predict(self, x_free, data: FitData, tables=None):
+        """Model ``f_r`` ``(n, 3)`` on the selected cells, in the compute dtype; with
+        ``tables`` (from :meth:`pass_tables`) the model is ``per_pass.apply`` with them."""
         dt = jnp.dtype(self.compute_dtype)
         params = self.model.unflatten(self.full_vector(x_free).astype(dt))
-        return self.model.fn(params, data.wi.astype(dt), data.wo.astype(dt))
+        wi, wo = data.wi.astype(dt), data.wo.astype(dt)
+        if tables is None:
+            return self.model.fn(params, wi, wo)
+        return self.model.per_pass.apply(params, tables[0], wi, wo)
 
-    def residual_x(self, x_free, data: FitData):
+    def residual_x(self, x_free, data: FitData, tables=None):
         """Flat residual as a function of the free scalars in physical units."""
-        pred = self.predict(x_free, data)
+        pred = self.predict(x_free, data, tables)
         return self._residual_of_pred(pred, data)
 
-    def residual(self, u, data: FitData):
-        """Flat residual as a function of the unconstrained ``u`` (what the solver sees)."""
-        return self.residual_x(self.physical(u), data)
+    def residual(self, u, data: FitData, tables=None):
+        """Flat residual as a function of the unconstrained ``u`` (what the solver sees);
+        ``tables`` as in :meth:`predict`, from :meth:`pass_tables` at ``u``."""
+        return self.residual_x(self.physical(u), data, tables)
 
     def cost_floor(self, data: FitData, noise: float):
         """A constant for the solver's cost, ``F = ½ Σ (κ ε (|g(ρ)| + 1) w)² / noise``.
@@ -123,16 +128,6 @@ class Problem(eqx.Module):
         held = jax.lax.stop_gradient(res(u))
         return jax.hessian(lambda v: jnp.sum(held * res(v)))(u)
 
-    def block_residual(self, u, data: FitData, tables=None):
-        """The residual ``(n, 3)`` at ``u`` of one block; with ``tables`` (from
-        :meth:`pass_tables` at ``u``) the model is ``per_pass.apply`` with them."""
-        if tables is None:
-            return self.residual(u, data).reshape(-1, 3)
-        dt = jnp.dtype(self.compute_dtype)
-        params = self.model.unflatten(self.full_vector(self.physical(u)).astype(dt))
-        pred = self.model.per_pass.apply(params, tables[0], data.wi.astype(dt), data.wo.astype(dt))
-        return self._residual_of_pred(pred, data).reshape(-1, 3)
-
     def block_gradient_held(self, u, data: FitData, r_bar, tables=None):
         r"""``Σ_i r̄_i ∇r_i(u) = J(u)ᵀ r̄`` over one block of cells: the gradient at ``u`` of
         ``g(v) = Σ_i r̄_i r_i(v)`` with the residuals ``r̄`` (``(n, 3)``, e.g. ``r`` at another
@@ -147,7 +142,8 @@ class Problem(eqx.Module):
         """
         acc = r_bar.dtype
         if tables is None:
-            return jax.grad(lambda v: jnp.sum(r_bar * self.block_residual(v, data).astype(acc)))(u)
+            g = lambda v: jnp.sum(r_bar * self.residual(v, data).reshape(-1, 3).astype(acc))
+            return jax.grad(g)(u)
         x, dxdu = jax.jvp(self.physical, (u,), (jnp.ones_like(u),))  # the map is elementwise
         _, _, fields, where = self.tangents_x(x, data, tables)
         tr = jnp.stack([jnp.sum(t.astype(acc) * r_bar, axis=0) for t in fields])

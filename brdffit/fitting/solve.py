@@ -218,11 +218,13 @@ def _second(problem: Problem, z, data, blocks):
     slab = jax.tree.map(lambda a: a[: block * n_blocks], data)
     h = second_steps(z, problem.compute_dtype)
     points = jnp.concatenate([z[None, :], z[None, :] + jnp.diag(h)])
-    tables = problem.pass_tables(z)
-    tables_at = None if tables is None else jax.vmap(problem.pass_tables)(points)
+    tables_at = None
+    if problem.model.per_pass is not None:
+        tables_at = jax.vmap(problem.pass_tables)(points)
+    tables = jax.tree.map(lambda a: a[0], tables_at)  # at z (None without per-pass tables)
 
     def add(total, d):
-        r_bar = problem.block_residual(z, d, tables).astype(acc)
+        r_bar = problem.residual(z, d, tables).reshape(-1, 3).astype(acc)
         at = lambda v, tab: problem.block_gradient_held(v, d, r_bar, tab)
         return total + jax.vmap(at)(points, tables_at)
 
