@@ -7,9 +7,11 @@ writes several results as ``{"results": [...]}``, best first; :func:`pick` choos
 
 Anything else raises :class:`ResultFormatError`, one line naming the source (the path, or
 ``<string>``) and the first problem found: text that is not UTF-8 or not JSON, a document that is
-not an object, a missing or unknown key, a value of the wrong type, a number out of range,
-vectors of disagreeing lengths. A UTF-8 byte-order mark is skipped. Nothing is evaluated: a
-model name the registry does not know is left for the caller to report.
+not an object (or not strict JSON: ``NaN``, ``Infinity``, a number beyond the float range), a
+missing or unknown key, a value of the wrong type, a number out of range,
+vectors of disagreeing lengths, ``names`` that are not the registered model's. A UTF-8
+byte-order mark is skipped. A model name the registry does not know is read as it is, for the
+caller to report (``result.model`` raises :class:`~brdffit.errors.UnknownNameError`).
 """
 
 from __future__ import annotations
@@ -81,11 +83,23 @@ def parse_text(name, raw):
     if not isinstance(raw, str):
         raise TypeError(f"expected JSON text (str or bytes), got {type(raw).__name__}")
     try:
-        return json.loads(raw.removeprefix("\ufeff"))
+        return json.loads(raw.removeprefix("\ufeff"), parse_constant=_no_constant,
+                          parse_float=_finite)
     except RecursionError:
         raise ResultFormatError(name, "JSON nested too deeply") from None
     except ValueError as exc:  # JSONDecodeError; an integer of more digits than Python reads
         raise ResultFormatError(name, f"not JSON: {exc}") from None
+
+
+def _no_constant(token):
+    raise ValueError(f"{token} is not JSON (the format writes null for a number that is not finite)")
+
+
+def _finite(text):
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"the number {text[:30]} is beyond the float range")
+    return value
 
 
 def entries(name, document) -> list:
@@ -247,8 +261,22 @@ def _consistent(d) -> None:
         raise _Bad(f"'names' has {len(d['names'])} entries and 'x' {n}; they must agree")
     if len(d["cov"]) != n or any(len(row) != n for row in d["cov"]):
         raise _Bad(f"'cov' must be {n} x {n}, the length of 'x'")
+    flat = _flat_names(d["model_name"])
+    if flat is not None and d["names"] != flat:
+        raise _Bad(f"'names' are not the {d['model_name']} model's {', '.join(flat)}")
     names = set(d["names"])
     for key in ("free", "fixed", "at_bound"):
         stray = [a for a in d[key] if a not in names]
         if stray:
             raise _Bad(f"{key!r} names {stray[0]!r}, which is not in 'names'")
+
+
+def _flat_names(model_name):
+    """The registered model's flat parameter names; None for a name the registry lacks."""
+    from ..errors import UnknownNameError
+    from ..models.registry import get_model
+
+    try:
+        return get_model(model_name).flat_names()
+    except UnknownNameError:
+        return None
