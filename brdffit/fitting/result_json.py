@@ -55,13 +55,15 @@ class ResultChoiceError(BrdffitError):
 def is_json_text(source) -> bool:
     """True when ``source`` is JSON text rather than a path: ``bytes``, or a ``str`` that, past
     a byte-order mark and white space, starts with ``{`` or ``[``, or that no file name can be
-    (it holds a newline or a NUL, or is longer than ``PATH_MAX``). ``os.PathLike`` is a path."""
+    (empty, white space, a leading byte-order mark, a newline or a NUL in it, longer than
+    ``PATH_MAX``). ``os.PathLike`` is a path."""
     if isinstance(source, (bytes, bytearray)):
         return True
     if not isinstance(source, str):
         return False
     head = source.lstrip("\ufeff \t\r\n")[:1]
-    return head in ("{", "[") or "\n" in source or "\0" in source or len(source) > _PATH_MAX
+    return (head in ("{", "[", "") or source.startswith("\ufeff") or "\n" in source
+            or "\0" in source or len(source) > _PATH_MAX)
 
 
 def read_document(source):
