@@ -27,7 +27,7 @@ import brdffit
 from brdffit import FitResult
 from brdffit.cli import main
 from brdffit.export import NotExportable, export, mitsuba_xml
-from brdffit.fitting.result_json import ResultChoiceError, ResultFormatError
+from brdffit.fitting import ResultChoiceError, ResultFormatError
 
 HOSTILE_NAMES = [
     "a--b",

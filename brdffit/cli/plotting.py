@@ -93,8 +93,7 @@ def _read_result(path, *, model=None, flag="--fit"):
 
 
 def _parse_result(where, raw: bytes, model):
-    from ..fitting import FitResult
-    from ..fitting.result_json import ResultChoiceError, ResultFormatError
+    from ..fitting import FitResult, ResultChoiceError, ResultFormatError
 
     try:
         return FitResult.from_json_string(raw, model=model)
