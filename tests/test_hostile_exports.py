@@ -54,7 +54,8 @@ def _result(model_name: str, table: str, params=None) -> FitResult:
     is under test), as ``brdffit fit --out`` would write it."""
     model = brdffit.get_model(model_name)
     full = model.complete(params if params is not None else NATIVE[model_name])
-    values = {k: (np.asarray(v, float).tolist() if np.ndim(v) else float(v)) for k, v in full.items()}
+    values = {k: (np.asarray(v, float).tolist() if np.ndim(v) else float(v))
+              for k, v in full.items()}
     x = np.concatenate([np.ravel(np.asarray(full[p.name], float)) for p in model.params])
     names = model.flat_names()
     return FitResult(
@@ -103,7 +104,8 @@ def test_a_hostile_table_name_stays_data_in_mitsuba_xml(tmp_path, capsys, model,
     out = _export_cli(tmp_path, _result(model, name), "mitsuba-xml", capsys)
     raw = out.read_bytes()
     root = ET.fromstring(raw)  # one comment, then one element: a well-formed document
-    assert root.tag == "bsdf" and root.get("id") == "brdffit-material" and root.findall(".//bsdf") == []
+    assert root.tag == "bsdf" and root.get("id") == "brdffit-material"
+    assert root.findall(".//bsdf") == []
     doc = xml.dom.minidom.parseString(raw)
     comments = [n for n in doc.childNodes if n.nodeType == n.COMMENT_NODE]
     assert len(comments) == 1 and len(doc.getElementsByTagName("bsdf")) == 1
@@ -292,7 +294,8 @@ def test_export_picks_the_model_of_a_several_model_file(tmp_path, capsys, multi)
                  "--model", "gltf-pbr"]) == 0
     doc = _strict_json(out.read_text(encoding="utf-8"))
     picked = FitResult.from_json(result, model="gltf-pbr")
-    assert doc["materials"][0]["pbrMetallicRoughness"]["roughnessFactor"] == picked.params["roughness"]
+    pbr = doc["materials"][0]["pbrMetallicRoughness"]
+    assert pbr["roughnessFactor"] == picked.params["roughness"]
     assert ast.literal_eval(doc["materials"][0]["extras"]["brdffit"].split(" fit of ")[1]
                             .rsplit(", exact")[0]) == "a--b -->"
 
@@ -306,8 +309,9 @@ def test_plot_draws_the_picked_model(tmp_path, capsys, multi):
 
 
 def test_result_messages_name_the_argument_of_the_command_run(tmp_path, capsys):
-    for argv in (["export", str(tmp_path / "absent.json"), "--to", "gltf", "-o", str(tmp_path / "e")],
-                 ["render", str(tmp_path / "absent.json"), "-o", str(tmp_path / "s.png")]):
+    absent = str(tmp_path / "absent.json")
+    for argv in (["export", absent, "--to", "gltf", "-o", str(tmp_path / "e")],
+                 ["render", absent, "-o", str(tmp_path / "s.png")]):
         code, err = _run(capsys, argv)
         assert code == 2 and "--fit" not in _one_line(err) and "absent.json: no such file" in err
     (tmp_path / "r.json").write_bytes(b"\xef\xbb\xbf" + _result("gltf-pbr", "t").to_json().encode())

@@ -10,7 +10,8 @@ listed may change without notice.
 * the fit: :func:`fit`, its options (:data:`FIT_DEFAULTS`, :func:`fit_options`,
   :class:`Settings`, :func:`tolerances`, :func:`default_precision`, :data:`WEIGHTINGS`) and its result
   (:class:`FitResult`, :class:`FittedModel`, :func:`json_safe`, :func:`value_with_error`,
-  and the errors of reading one back, :class:`ResultFormatError`, :class:`ResultChoiceError`);
+  and the errors of reading one back, :class:`ResultFormatError`,
+  :class:`ResultChoiceError`);
 * the registries: losses (:data:`LOSSES`, :data:`DEFAULT_LOSS`, :func:`get_loss`,
   :class:`Loss`) and solvers (:data:`SOLVERS`, :data:`DEFAULT_SOLVER`);
 * the pieces another estimator of the same problem needs (the posterior sampler): the cells

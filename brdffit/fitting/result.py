@@ -286,8 +286,9 @@ class FitResult:
         :class:`~brdffit.fitting.result_json.ResultFormatError` naming ``source``."""
         from . import result_json
 
+        missing = dataclasses.MISSING
         required = [f.name for f in dataclasses.fields(cls)
-                    if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+                    if f.default is missing and f.default_factory is missing]
         return cls(**result_json.fields(source, d, required))
 
     @classmethod

@@ -81,7 +81,8 @@ def parse_text(name, raw):
         try:
             raw = bytes(raw).decode("utf-8-sig")
         except UnicodeDecodeError as exc:
-            raise ResultFormatError(name, f"not UTF-8 text: {exc.reason} at byte {exc.start}") from None
+            problem = f"not UTF-8 text: {exc.reason} at byte {exc.start}"
+            raise ResultFormatError(name, problem) from None
     if not isinstance(raw, str):
         raise TypeError(f"expected JSON text (str or bytes), got {type(raw).__name__}")
     try:
@@ -94,7 +95,8 @@ def parse_text(name, raw):
 
 
 def _no_constant(token):
-    raise ValueError(f"{token} is not JSON (the format writes null for a number that is not finite)")
+    raise ValueError(f"{token} is not JSON (the format writes null for a number that is not "
+                     f"finite)")
 
 
 def _finite(text):
@@ -191,7 +193,8 @@ def _mapping(check):
     def checked(v, where):
         if not isinstance(v, dict):
             raise _Bad(f"{where} is {_kind(v)}, expected an object")
-        return {_text(k, f"a key of {where}"): check(a, f"{where}[{k!r:.40}]") for k, a in v.items()}
+        return {_text(k, f"a key of {where}"): check(a, f"{where}[{k!r:.40}]")
+                for k, a in v.items()}
     return checked
 
 
