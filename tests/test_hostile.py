@@ -132,7 +132,7 @@ def test_synth_refuses_absurd_values(capsys, tmp_path, argv, needle):
 
 
 @pytest.mark.parametrize("content, needle", [
-    ("[1, 2, 3]", "not a brdffit result (ValueError: the JSON is not an object)"),
+    ("[1, 2, 3]", "not a brdffit result (the document is a list, expected an object)"),
     ('{"model_name": "ggx", "params": {"alpha": [0.1, 0.2]}}', "not a brdffit result"),
 ])
 def test_plot_fit_results_are_checked(capsys, tmp_path, content, needle):

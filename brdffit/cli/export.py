@@ -4,13 +4,14 @@ The result's model must be the target's own BSDF (a renderer-native model: ``mit
 ``mitsuba-roughconductor*``, ``gltf-pbr``); otherwise the command fails naming the native model
 to fit, unless ``--approximate``, which fits that native model to the fitted one and prints the
 approximation's error in the metrics of a fit. The mapping is documented in
-:mod:`brdffit.export`.
+:mod:`brdffit.export`. ``--model NAME`` picks one result of a file of several
+(``brdffit fit -m a,b --out``); such a file without it is refused, its models listed.
 """
 
 from __future__ import annotations
 
 from ._common import check_outputs, write_text
-from .plotting import _read_result
+from .plotting import _read_result, add_model_option
 
 TARGETS = ("mitsuba-xml", "mitsuba-dict", "gltf")
 
@@ -28,6 +29,7 @@ def add_parser(sub, parents) -> None:
         "model to any other and reports the approximation's error.",
     )
     p.add_argument("result", metavar="RESULT.json", help="a result written by `brdffit fit --out`")
+    add_model_option(p, "export")
     p.add_argument("--to", required=True, choices=TARGETS, help="the target format")
     p.add_argument("--output", "-o", required=True, metavar="OUT", help="the file to write")
     p.add_argument("--approximate", action="store_true",
@@ -43,7 +45,7 @@ def run(args) -> int:
     from ..export import export
 
     check_outputs([args.output], args.force)
-    result = _read_result(args.result)
+    result = _read_result(args.result, model=args.model, flag="")
     start = time.perf_counter()
     out = export(result, args.to, approximate=args.approximate)
     write_text(args.output, out.text())

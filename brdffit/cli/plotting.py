@@ -1,4 +1,7 @@
-"""``brdffit plot FILE [--fit result.json] -o fig.png``: the diagnostic figures.
+"""``brdffit plot FILE [--fit result.json [--model NAME]] -o fig.png``: the diagnostic figures.
+
+``--model`` picks one result of a file of several (``brdffit fit -m a,b --out``); such a file
+read without it is refused in one line that lists its models.
 
 ``-o fig.png`` writes ``fig-slice.png``, ``fig-peaks.png``, ``fig-albedo.png`` and
 ``fig-spheres.png`` (see :func:`brdffit.plots.figure_paths`); an existing folder receives
@@ -26,11 +29,19 @@ def add_parser(sub, parents) -> None:
     )
     p.add_argument("file", metavar="FILE", help="a .binary MERL table or a .csv/.npz sample list")
     p.add_argument("--fit", metavar="RESULT.json", help="a result written by `brdffit fit --out`")
+    add_model_option(p, "draw")
     p.add_argument("--output", "-o", required=True, metavar="FIG.png",
                    help="FIG.png → FIG-slice.png, FIG-peaks.png, FIG-albedo.png, FIG-spheres.png; "
                    "an existing folder receives slice.png, ...")
     p.add_argument("--force", action="store_true", help="overwrite existing figures")
     p.set_defaults(run=run)
+
+
+def add_model_option(p, verb: str) -> None:
+    """``--model NAME``: which result of a file written by ``brdffit fit -m a,b --out``."""
+    p.add_argument("--model", "-m", metavar="NAME",
+                   help=f"the model whose result to {verb}, for a file of several results "
+                   "(`brdffit fit -m a,b --out`); a file of one result needs none")
 
 
 def figure_paths(path) -> list[Path]:
@@ -57,38 +68,43 @@ def write_figures(data, path, *, model=None, params=None, converged=True, progre
 MAX_RESULT_BYTES = 16 << 20
 
 
-def _read_result(path):
-    """A :class:`FitResult` from ``--fit``, its model and parameters checked against the registry."""
+def _read_result(path, *, model=None, flag="--fit"):
+    """A :class:`FitResult` from a result file, its model and parameters checked against the
+    registry. ``model``: the ``--model`` that picks one result of a several-model file.
+    ``flag``: the option that named ``path`` in the command run (``""`` for an argument), so
+    that every message names it."""
+    where = f"{flag} {path}" if flag else str(path)
     p = Path(path)
     if not p.exists():
-        raise UsageError(f"--fit {path}: no such file (write one with `brdffit fit ... --out`)")
+        raise UsageError(f"{where}: no such file (write one with `brdffit fit ... --out`)")
     from data_formats._files import NotRegularFileError, open_regular
 
     try:
         with open_regular(p, "rb") as fh:
             raw = fh.read(MAX_RESULT_BYTES + 1)
     except NotRegularFileError as exc:
-        raise UsageError(f"--fit {exc}") from None
+        raise UsageError(f"{flag} {exc}" if flag else str(exc)) from None
     if len(raw) > MAX_RESULT_BYTES:
-        raise UsageError(f"--fit {path}: larger than {MAX_RESULT_BYTES:,} bytes; not a brdffit "
+        raise UsageError(f"{where}: larger than {MAX_RESULT_BYTES:,} bytes; not a brdffit "
                          f"result")
-    result = _parse_result(path, raw)
-    _check_result_params(path, result)
+    result = _parse_result(where, raw, model)
+    _check_result_params(where, result)
     return result
 
 
-def _parse_result(path, raw: bytes):
-    import json
-
-    from ..fitting import FitResult
+def _parse_result(where, raw: bytes, model):
+    from ..fitting import FitResult, ResultChoiceError, ResultFormatError
 
     try:
-        if not isinstance(json.loads(raw.decode("utf-8")), dict):
-            raise ValueError("the JSON is not an object")
-        return FitResult.from_json(raw.decode("utf-8"))
-    except (ValueError, KeyError, TypeError, AttributeError, IndexError, RecursionError) as exc:
-        raise UsageError(f"--fit {path}: not a brdffit result ({type(exc).__name__}: "
-                         f"{_short(exc)}); write one with `brdffit fit ... --out`") from None
+        return FitResult.from_json_string(raw, model=model)
+    except ResultFormatError as exc:
+        raise UsageError(f"{where}: not a brdffit result ({_short(exc.problem)}); write one "
+                         f"with `brdffit fit ... --out`") from None
+    except ResultChoiceError as exc:
+        held = ", ".join(exc.models)
+        head = (f"holds {len(exc.models)} results ({held})" if exc.requested is None
+                else f"holds no {exc.requested} result (it holds {held})")
+        raise UsageError(f"{where} {head}; pick one with --model NAME") from None
 
 
 def _short(exc) -> str:
@@ -96,7 +112,7 @@ def _short(exc) -> str:
     return text if len(text) <= 200 else text[:197] + "..."
 
 
-def _check_result_params(path, result) -> None:
+def _check_result_params(where, result) -> None:
     """Model name known; every parameter known, of its declared shape, finite, in bounds."""
     from .. import get_model
     from ..errors import BrdffitError
@@ -108,13 +124,15 @@ def _check_result_params(path, result) -> None:
             if not np.all(np.isfinite(value)):
                 raise BrdffitError(f"parameter {name!r}={value!r} is not finite")
     except (BrdffitError, TypeError, ValueError) as exc:
-        raise UsageError(f"--fit {path}: {_short(exc)}") from None
+        raise UsageError(f"{where}: {_short(exc)}") from None
 
 
 def run(args) -> int:
     from ._common import Progress
 
-    result = _read_result(args.fit) if args.fit else None
+    if args.model and not args.fit:
+        raise UsageError(f"--model {args.model} picks a result of --fit RESULT.json; pass --fit")
+    result = _read_result(args.fit, model=args.model) if args.fit else None
     written = figure_paths(args.output)
     with check_outputs(written, args.force) as outputs:
         data = read_input(args.file)

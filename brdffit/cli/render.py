@@ -3,13 +3,14 @@
 The scene of :mod:`brdffit.export.render` (orthographic view, one directional light 45° above
 the view axis, a constant environment): a few seconds or less on a CPU with the ``scalar_rgb``
 variant. Needs ``pip install 'brdffit[mitsuba]'``. A result whose model is not a Mitsuba model
-needs ``--approximate`` (see ``brdffit export``).
+needs ``--approximate`` (see ``brdffit export``); ``--model NAME`` picks one result of a file of
+several, as there.
 """
 
 from __future__ import annotations
 
 from ._common import UsageError, atomic_write, check_outputs
-from .plotting import _read_result
+from .plotting import _read_result, add_model_option
 
 
 def add_parser(sub, parents) -> None:
@@ -22,6 +23,7 @@ def add_parser(sub, parents) -> None:
         "a sphere with it (directional light + constant environment) into a PNG.",
     )
     p.add_argument("result", metavar="RESULT.json", help="a result written by `brdffit fit --out`")
+    add_model_option(p, "render")
     p.add_argument("--output", "-o", required=True, metavar="SPHERE.png", help="the PNG to write")
     p.add_argument("--size", type=int, default=256, help="image width and height in pixels (256)")
     p.add_argument("--spp", type=int, default=16, help="samples per pixel (16)")
@@ -42,7 +44,7 @@ def run(args) -> int:
     if args.size < 8 or args.spp < 1:
         raise UsageError(f"--size {args.size} / --spp {args.spp}: need size ≥ 8 and spp ≥ 1")
     check_outputs([args.output], args.force)
-    result = _read_result(args.result)
+    result = _read_result(args.result, model=args.model, flag="")
     out = export(result, "mitsuba-dict", approximate=args.approximate)
     start = time.perf_counter()
     image = render_mitsuba(out.payload, size=args.size, spp=args.spp, environment=args.environment)

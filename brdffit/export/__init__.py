@@ -41,20 +41,31 @@ Targets: ``"mitsuba-dict"`` (a dict for ``mitsuba.load_dict``; written to a file
 ``"mitsuba-xml"`` (a ``<bsdf>`` element to paste into a ``<scene>``), ``"gltf"`` (a glTF 2.0
 JSON document with one material). Where to add one: a module in this package writing the
 payload, an entry in :data:`TARGETS` and in :data:`NATIVE_FOR`.
+
+Every file is well-formed whatever the data: the table's name goes into the provenance note
+(the XML's leading comment, the glTF material's ``extras.brdffit``) as a Python string literal
+(:func:`brdffit.export._text.literal`), never as markup; XML attribute values are escaped; the
+JSON is strict. A parameter that is not finite is refused (:class:`NotExportable`): no format
+here can carry NaN or infinity.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import warnings
 
+import numpy as np
+
 from ..errors import BrdffitError, UnknownNameError
+from ._text import literal, xml_comment
 from .gltf import gltf_document, params_from_gltf
 from .mitsuba import is_mitsuba_model, mitsuba_dict, mitsuba_xml
 
 __all__ = ["TARGETS", "NATIVE_FOR", "ApproximationWarning", "Exported", "NoExactCounterpart",
-           "export", "gltf_document", "mitsuba_dict", "mitsuba_xml", "params_from_gltf"]
+           "NotExportable", "export", "gltf_document", "mitsuba_dict", "mitsuba_xml",
+           "params_from_gltf"]
 
 #: Export targets and the test "is this model the target's own BSDF?".
 TARGETS = {
@@ -69,6 +80,10 @@ NATIVE_FOR = {"mitsuba-dict": "mitsuba-principled", "mitsuba-xml": "mitsuba-prin
 
 class NoExactCounterpart(BrdffitError):
     """The model of a result is not the target renderer's BSDF (see :func:`export`)."""
+
+
+class NotExportable(BrdffitError):
+    """A parameter that no target format can carry (NaN, infinity)."""
 
 
 class ApproximationWarning(UserWarning):
@@ -97,17 +112,35 @@ class Exported:
         """The file contents: JSON for the dict targets, the XML element for ``mitsuba-xml``."""
         if isinstance(self.payload, str):
             return self.payload
-        return json.dumps(self.payload, indent=2) + "\n"
+        return json.dumps(self.payload, indent=2, allow_nan=False) + "\n"
+
+
+def _note(native, fitted, source, approx, *, comment: bool) -> str:
+    """The provenance line, with the table's name written as a literal (:mod:`._text`)."""
+    src = literal(source, comment=comment)
+    if approx is None:
+        return f"brdffit: {native} fit of {src}, exact"
+    m = approx.metrics
+    return (f"brdffit: {native} approximating a {fitted} fit of {src}; approximation error "
+            f"rmse_log {m['rmse_log']:.4g}, rel_error {m['rel_error']:.4g}")
 
 
 def _payload(target, model, params, note):
+    """The target's payload; ``note(comment=...)`` gives the provenance line."""
     if target == "mitsuba-dict":
         return mitsuba_dict(model, params)
     if target == "mitsuba-xml":
-        return f"<!-- {note} -->\n" + mitsuba_xml(model, params)
+        return xml_comment(note(comment=True)) + "\n" + mitsuba_xml(model, params)
     doc = gltf_document(params)
-    doc["materials"][0]["extras"] = {"brdffit": note}
+    doc["materials"][0]["extras"] = {"brdffit": note(comment=False)}
     return doc
+
+
+def _check_finite(name, params) -> None:
+    for key, value in params.items():
+        if not np.all(np.isfinite(np.asarray(value, float))):
+            raise NotExportable(f"parameter {key!r} of the {name} result is {value!r}, not a "
+                                f"finite number: there is no material to export; fit again")
 
 
 def _no_counterpart(name, target, native):
@@ -128,6 +161,7 @@ def export(result, to: str, *, approximate: bool = False, **approx_options) -> E
     Raises :class:`NoExactCounterpart` when the model is not the target's BSDF and
     ``approximate`` is false; with ``approximate=True`` it fits :data:`NATIVE_FOR` ``[to]`` to
     the fitted model (options passed to :func:`~brdffit.export.approximate.approximate`).
+    Raises :class:`NotExportable` for a parameter that is not finite.
     """
     from ..models import get_model
 
@@ -136,6 +170,7 @@ def export(result, to: str, *, approximate: bool = False, **approx_options) -> E
     name, params = (result if isinstance(result, tuple) else (result.model_name, result.params))
     model = get_model(name)
     source = getattr(result, "table", "") or "data"
+    _check_finite(name, params)
     approx = None
     if not TARGETS[to](model.name):
         if not approximate:
@@ -144,12 +179,9 @@ def export(result, to: str, *, approximate: bool = False, **approx_options) -> E
 
         approx = fit_native(model, model.complete(params), NATIVE_FOR[to], **approx_options)
         model, params = get_model(approx.model_name), approx.params
-        m = approx.metrics
-        note = (f"brdffit: {model.name} approximating a {name} fit of {source}; approximation "
-                f"error rmse_log {m['rmse_log']:.4g}, rel_error {m['rel_error']:.4g}")
-    else:
-        note = f"brdffit: {model.name} fit of {source}, exact"
+        _check_finite(model.name, params)
     full = model.complete(params)
+    note = functools.partial(_note, model.name, name, source, approx)
     return Exported(to, _payload(to, model, full, note), model.name, full, approx)
 
 

@@ -5,18 +5,22 @@ The document is the smallest valid glTF 2.0 asset that carries a material: the r
 ``pbrMetallicRoughness`` holds ``baseColorFactor`` (linear RGB plus alpha 1), ``metallicFactor``
 and ``roughnessFactor`` (glTF 2.0 Specification §3.9.2 "Metallic-Roughness Material", schema
 ``material.pbrMetallicRoughness.schema.json``). A viewer applies it to a mesh by index 0.
+Strings (the material's ``name``, the ``generator``) are escaped by the JSON writer; one that
+UTF-8 cannot carry (a lone surrogate) is refused.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ._text import unicode_text
+
 
 def gltf_document(params, *, name: str = "brdffit-material", generator: str = "brdffit") -> dict:
     """The glTF JSON (a dict; ``json.dumps`` it) for complete ``gltf-pbr`` parameters."""
     base = [float(x) for x in np.broadcast_to(np.asarray(params["base_color"], float), (3,))]
     material = {
-        "name": name,
+        "name": unicode_text(name, "material name"),
         "pbrMetallicRoughness": {
             "baseColorFactor": base + [1.0],
             "metallicFactor": float(params["metallic"]),
@@ -24,7 +28,8 @@ def gltf_document(params, *, name: str = "brdffit-material", generator: str = "b
         },
         "doubleSided": False,
     }
-    return {"asset": {"version": "2.0", "generator": generator}, "materials": [material]}
+    return {"asset": {"version": "2.0", "generator": unicode_text(generator, "generator")},
+            "materials": [material]}
 
 
 def params_from_gltf(document: dict, index: int = 0) -> dict:

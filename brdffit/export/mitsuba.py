@@ -2,16 +2,17 @@
 
 Only the models whose formula is Mitsuba's own are written (:data:`MITSUBA_MODELS`); the
 parameter mapping is the table in :mod:`brdffit.export`. Values are written with full float64
-precision (Mitsuba reads them as float32).
+precision (Mitsuba reads them as float32). Every attribute value of the XML is escaped
+(:func:`brdffit.export._text.xml_attribute`), so the element is well-formed XML; a ``bsdf_id``
+holding a character XML cannot carry is refused.
 """
 
 from __future__ import annotations
 
-from xml.sax.saxutils import quoteattr
-
 import numpy as np
 
 from ..models.mitsuba_roughconductor import variant_of
+from ._text import xml_attribute
 
 #: Principled parameters, written under the same names (``spec_trans`` is added as 0).
 PRINCIPLED_SCALARS = ("roughness", "anisotropic", "metallic", "specular", "spec_tint", "sheen",
@@ -63,22 +64,24 @@ def mitsuba_dict(model, params) -> dict:
 
 
 def _xml_value(name, value) -> str:
+    key = xml_attribute(name, "property name")
     if isinstance(value, dict):  # an RGB texture
         text = ", ".join(repr(float(x)) for x in value["value"])
-        return f'<rgb name={quoteattr(name)} value="{text}"/>'
+        return f'<rgb name={key} value="{text}"/>'
     if isinstance(value, str):
-        return f"<string name={quoteattr(name)} value={quoteattr(value)}/>"
-    return f'<float name={quoteattr(name)} value="{float(value)!r}"/>'
+        return f"<string name={key} value={xml_attribute(value, name)}/>"
+    return f'<float name={key} value="{float(value)!r}"/>'
 
 
 def mitsuba_xml(model, params, *, bsdf_id: str = "brdffit-material") -> str:
     """The ``<bsdf>`` element for a Mitsuba 3 scene (a fragment: paste it inside ``<scene>``).
 
     The same values as :func:`mitsuba_dict`, each as ``<float>``, ``<rgb>`` or ``<string>``; the
-    element carries ``id=bsdf_id`` so shapes can ``<ref id="..."/>`` it.
+    element carries ``id=bsdf_id`` (escaped; ``ValueError`` for a character XML cannot hold) so
+    shapes can ``<ref id="..."/>`` it.
     """
     d = mitsuba_dict(model, params)
-    lines = [f"<bsdf type={quoteattr(d['type'])} id={quoteattr(bsdf_id)}>"]
+    lines = [f"<bsdf type={xml_attribute(d['type'], 'type')} id={xml_attribute(bsdf_id, 'id')}>"]
     lines += [f"    {_xml_value(k, v)}" for k, v in d.items() if k != "type"]
     lines.append("</bsdf>")
     return "\n".join(lines) + "\n"

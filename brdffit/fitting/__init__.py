@@ -9,7 +9,9 @@ listed may change without notice.
 
 * the fit: :func:`fit`, its options (:data:`FIT_DEFAULTS`, :func:`fit_options`,
   :class:`Settings`, :func:`tolerances`, :func:`default_precision`, :data:`WEIGHTINGS`) and its result
-  (:class:`FitResult`, :class:`FittedModel`, :func:`json_safe`, :func:`value_with_error`);
+  (:class:`FitResult`, :class:`FittedModel`, :func:`json_safe`, :func:`value_with_error`,
+  and the errors of reading one back, :class:`ResultFormatError`,
+  :class:`ResultChoiceError`);
 * the registries: losses (:data:`LOSSES`, :data:`DEFAULT_LOSS`, :func:`get_loss`,
   :class:`Loss`) and solvers (:data:`SOLVERS`, :data:`DEFAULT_SOLVER`);
 * the pieces another estimator of the same problem needs (the posterior sampler): the cells
@@ -26,6 +28,7 @@ from .options import FIT_DEFAULTS, Settings, default_precision, fit_options, tol
 from .parameters import Scalars, assign
 from .problem import Problem
 from .result import FitResult, FittedModel, json_safe, value_with_error
+from .result_json import ResultChoiceError, ResultFormatError
 from .solvers import DEFAULT_SOLVER, SOLVERS
 from .start import Features, measure
 
@@ -42,6 +45,8 @@ __all__ = [
     "FittedModel",
     "Loss",
     "Problem",
+    "ResultChoiceError",
+    "ResultFormatError",
     "Scalars",
     "Selection",
     "Settings",

@@ -4,7 +4,8 @@
 covariance (Gauss–Newton approximation at the optimum, in physical units), cost and error
 metrics, the solver's verdict (``success``, ``status``, ``message``, ``steps``), the scalars that
 ended at a bound, and timings. ``result.model(wi, wo)`` evaluates the fitted BRDF anywhere;
-``result.render_merl()`` fills a whole MERL grid with it.
+``result.render_merl()`` fills a whole MERL grid with it. :meth:`FitResult.from_json` reads a
+path or JSON text back, every field checked (:mod:`brdffit.fitting.result_json`).
 """
 
 from __future__ import annotations
@@ -50,14 +51,6 @@ def json_safe(v):
         return [json_safe(x) for x in v]
     if isinstance(v, dict):
         return {k: json_safe(x) for k, x in v.items()}
-    return v
-
-
-def _from_json_safe(v):
-    if v is None:
-        return float("nan")
-    if isinstance(v, list):
-        return [_from_json_safe(x) for x in v]
     return v
 
 
@@ -287,19 +280,45 @@ class FitResult:
         return text
 
     @classmethod
-    def from_dict(cls, d: dict) -> FitResult:
-        d = dict(d)
-        d.setdefault("provenance", {})
-        d.pop("posterior", None)  # `brdffit fit --mcmc --out` nests the posterior's figures
-        d["stderr"] = {k: _from_json_safe(v) for k, v in d["stderr"].items()}
-        d["x"] = np.asarray(d["x"], float)
-        d["cov"] = np.asarray(_from_json_safe(d["cov"]), float).reshape(len(d["x"]), len(d["x"]))
-        return cls(**d)
+    def from_dict(cls, d: dict, *, source: str = "<dict>") -> FitResult:
+        """Inverse of :meth:`to_dict` (and of the parsed :meth:`to_json`): every field checked
+        (:mod:`brdffit.fitting.result_json`), ``null`` read as NaN; a malformed ``d`` raises
+        :class:`~brdffit.fitting.result_json.ResultFormatError` naming ``source``."""
+        from . import result_json
+
+        missing = dataclasses.MISSING
+        required = [f.name for f in dataclasses.fields(cls)
+                    if f.default is missing and f.default_factory is missing]
+        return cls(**result_json.fields(source, d, required))
 
     @classmethod
-    def from_json(cls, text_or_path) -> FitResult:
-        """Inverse of :meth:`to_json`; accepts JSON text or a path to a JSON file."""
-        s = str(text_or_path)
-        if not s.lstrip().startswith("{"):
-            s = Path(s).read_text()
-        return cls.from_dict(json.loads(s))
+    def from_json(cls, source, *, model: str | None = None) -> FitResult:
+        """Inverse of :meth:`to_json`: ``source`` is a path (``str`` or ``os.PathLike``) to a
+        JSON file, or the JSON text (``bytes``, or a ``str`` that starts with ``{`` or ``[``;
+        :func:`~brdffit.fitting.result_json.is_json_text`); a UTF-8 byte-order mark is skipped.
+
+        A file of several results (``brdffit fit -m a,b --out``: ``{"results": [...]}``) needs
+        ``model``, the one to read; given for a single result, it must be that result's model.
+        Raises :class:`~brdffit.fitting.result_json.ResultFormatError` (a ``ValueError``) for
+        anything that is not a result, :class:`~brdffit.fitting.result_json.ResultChoiceError`
+        when ``model`` is missing or not in the file, ``OSError`` for a path that cannot be read.
+        """
+        from . import result_json
+
+        return cls._from_document(*result_json.read_document(source), model)
+
+    @classmethod
+    def from_json_string(cls, text, *, model: str | None = None) -> FitResult:
+        """:meth:`from_json` of JSON text (``str`` or ``bytes``), never taken for a path."""
+        from . import result_json
+
+        return cls._from_document("<string>", result_json.parse_text("<string>", text), model)
+
+    @classmethod
+    def _from_document(cls, name, document, model) -> FitResult:
+        from . import result_json
+
+        items = result_json.entries(name, document)
+        results = [cls.from_dict(d, source=name if len(items) == 1 else f"{name} results[{i}]")
+                   for i, d in enumerate(items)]
+        return result_json.pick(name, results, model)
