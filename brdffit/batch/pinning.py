@@ -64,3 +64,4 @@ class PinCores(WorkerPlugin):
         except (TypeError, ValueError):
             return
         pin_process(self.groups[k % len(self.groups)])
+
