@@ -76,13 +76,35 @@ def _check_file(folder_fd: int, name: str, where) -> None:
         raise _refuse(where, st, "a result file")
 
 
-def prepare(outdir, folders: dict) -> str:
+def prepare(outdir, folders: dict) -> tuple[str, list]:
     """Create ``outdir`` if needed, prove it writable, and check the tree below it.
 
     ``folders`` maps each material name to the file names its jobs will write. Returns the
-    absolute path of ``outdir``. Raises :class:`BatchOutputError` before any work is done.
+    absolute path of ``outdir`` and the folders created for it (innermost first; see
+    :func:`remove_empty`). Raises :class:`BatchOutputError` before any work is done, leaving
+    no folder it created.
     """
     outdir = os.path.abspath(outdir)
+    created, parent = [], outdir
+    while not os.path.lexists(parent) and parent != os.path.dirname(parent):
+        created.append(parent)
+        parent = os.path.dirname(parent)
+    try:
+        _check_tree(outdir, folders)
+    except BaseException:
+        remove_empty(created)
+        raise
+    return outdir, created
+
+
+def remove_empty(folders) -> None:
+    """Remove each of ``folders`` (in order) that is still empty; for a batch that never ran."""
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            os.rmdir(folder)
+
+
+def _check_tree(outdir: str, folders: dict) -> None:
     try:
         os.makedirs(outdir, exist_ok=True)
     except FileExistsError:
@@ -105,7 +127,6 @@ def prepare(outdir, folders: dict) -> str:
             with _open_dir(material, root) as fd:
                 for name in files:
                     _check_file(fd, check_component(name), os.path.join(where, name))
-    return outdir
 
 
 def _probe(root: int, outdir: str) -> None:

@@ -200,18 +200,20 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
     """Run every job, collect one row per job (in job order), write the table if ``outdir``.
 
     ``outdir`` is created and checked (writable, no link or special file where an output
-    belongs: :func:`brdffit.batch.outdir.prepare`) before the cluster starts."""
+    belongs: :func:`brdffit.batch.outdir.prepare`) before the cluster starts, and removed again
+    if it was created and the cluster cannot start."""
     t0 = time.perf_counter()
     if outdir is not None:
-        folders: dict = {}
-        for job in job_list:
-            names = job.names(plot)
-            folders.setdefault(job.material, []).extend(
-                [names["json"], names["meta"], *names.get("plots", [])])
-        outdir = outdirs.prepare(outdir, folders)
+        outdir, created = outdirs.prepare(outdir, _files_by_folder(job_list, plot))
     outputs: dict[int, dict] = {}
-    with open_client(client, workers=workers, scheduler=scheduler,
-                     dashboard=dashboard) as (c, where):
+    with contextlib.ExitStack() as stack:
+        try:
+            c, where = stack.enter_context(open_client(client, workers=workers,
+                                                       scheduler=scheduler, dashboard=dashboard))
+        except BaseException:
+            if outdir is not None:  # nothing ran: no output folder left behind
+                outdirs.remove_empty(created)
+            raise
         try:
             _collect(c, job_list, outputs, {"outdir": outdir, "force": force, "plot": plot,
                                                 "want_result": want_results}, progress)
@@ -225,6 +227,16 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
         results = [None if outputs[i]["result"] is None else
                    FitResult.from_dict(outputs[i]["result"]) for i in sorted(outputs)]
     return BatchOutcome(df, results, time.perf_counter() - t0, where, files)
+
+
+def _files_by_folder(job_list, plot: bool) -> dict:
+    """Material → the file names its jobs write in ``OUTDIR/<material>/``."""
+    folders: dict = {}
+    for job in job_list:
+        names = job.names(plot)
+        folders.setdefault(job.material, []).extend(
+            [names["json"], names["meta"], *names.get("plots", [])])
+    return folders
 
 
 def _collect(client, job_list, outputs, kwargs, progress) -> None:
