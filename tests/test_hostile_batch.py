@@ -12,6 +12,7 @@ import socket
 import ssl
 import stat
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -295,3 +296,33 @@ def test_local_cluster_refuses_other_clients_and_serves_no_http(tmp_path):
         comms |= {parse_host_port(w["nanny"])[1] for w in info["workers"].values()}
         pids = [os.getpid(), *client.run(os.getpid).values()]
         assert set().union(*map(_listening, pids)) - before <= comms
+
+
+SIGNAL_EXIT = """
+import os
+from brdffit.batch import runner
+
+if __name__ == "__main__":
+    with runner.open_client(workers=1) as (client, _):
+        print(*client.run(os.getpid).values(), flush=True)
+        runner.close_local_clusters()  # what the signal watcher of `brdffit batch` runs
+        os._exit(130)
+"""
+
+
+def test_closing_the_cluster_on_a_signal_leaks_nothing(tmp_path):
+    """The signal watcher ends the process with ``os._exit``: before it, the workers are
+    stopped and the cluster closed, so no worker outlives the batch and ``multiprocessing``
+    finds no leaked semaphore (without this it warns of them at every interrupted batch)."""
+    import psutil
+
+    script = tmp_path / "interrupted.py"
+    script.write_text(SIGNAL_EXIT)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          env=env, timeout=120)
+    assert done.returncode == 130, done.stderr
+    assert "leaked" not in done.stderr and "Traceback" not in done.stderr, done.stderr
+    worker = int(done.stdout.split()[0])
+    gone = not psutil.pid_exists(worker) or psutil.Process(worker).status() == "zombie"
+    assert gone

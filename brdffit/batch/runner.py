@@ -60,6 +60,7 @@ NO_HTTP = {"distributed.scheduler.http.routes": [], "distributed.worker.http.rou
 #: The schemes a scheduler address may have (``tls`` takes its credentials from Dask's
 #: configuration, ``distributed.comm.tls``).
 SCHEDULER_SCHEMES = ("tcp", "tls")
+_LIVE_CLUSTERS: set = set()
 #: The scheduler's dashboard address when ``--dashboard`` names none: loopback only.
 DEFAULT_DASHBOARD = "127.0.0.1:8787"
 
@@ -153,7 +154,9 @@ def _local_cluster(n: int, dashboard: str | None):
     security = Security.temporary()
     settings = {**LOCAL_SCHEDULER, **({} if dashboard else NO_HTTP)}
     with dask.config.set(settings):
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+        # Started without workers, so that a signal during their start finds the cluster
+        # (close_local_clusters); the workers are added below.
+        cluster = LocalCluster(n_workers=0, threads_per_worker=1, processes=True,
                                host="127.0.0.1", protocol="tls://", security=security,
                                dashboard_address=dashboard or None,
                                # Without a dashboard, Dask's HTTP listener gets a free loopback
@@ -161,14 +164,36 @@ def _local_cluster(n: int, dashboard: str | None):
                                scheduler_kwargs=None if dashboard else {
                                    "dashboard": False, "dashboard_address": "127.0.0.1:0"},
                                silence_logs=logging.ERROR, env={"MPLBACKEND": "Agg"})
-    with cluster, Client(cluster, security=security) as c:
-        if not dashboard:
-            nohttp.stop_http(cluster.scheduler)
-        c.register_plugin(nohttp.NoHttp())
-        groups = pinning.core_groups(n)
-        if n > 1 and groups:
-            c.register_plugin(pinning.PinCores(groups))
-        yield c, f"{n} local worker{'s' * (n != 1)}"
+    _LIVE_CLUSTERS.add(cluster)
+    try:
+        with cluster, Client(cluster, security=security) as c:
+            if not dashboard:
+                nohttp.stop_http(cluster.scheduler)
+            c.register_plugin(nohttp.NoHttp())
+            groups = pinning.core_groups(n)
+            if n > 1 and groups:
+                c.register_plugin(pinning.PinCores(groups))
+            with dask.config.set(settings):
+                cluster.scale(n)
+                c.wait_for_workers(n)
+            yield c, f"{n} local worker{'s' * (n != 1)}"
+    finally:
+        _LIVE_CLUSTERS.discard(cluster)
+
+
+def close_local_clusters(timeout: float = 5) -> None:
+    """Close the local clusters started here that still run: for a signal handler that is
+    about to end the process, so that the workers stop and their semaphores are released
+    (no "leaked semaphore" warning from ``multiprocessing``)."""
+    import signal
+
+    logging.disable(logging.CRITICAL)  # the process ends: lost jobs and workers are expected
+    for cluster in list(_LIVE_CLUSTERS):
+        for nanny in list(getattr(cluster, "_created", ())):  # a fit does not stop soon
+            with contextlib.suppress(Exception):
+                os.kill(nanny.process.process.pid, signal.SIGKILL)
+        with contextlib.suppress(Exception):
+            cluster.close(timeout=timeout)
 
 
 @dataclasses.dataclass

@@ -25,6 +25,7 @@ import sys
 from pathlib import Path
 
 from ._common import UsageError
+from ._signals import add_cleanup, remove_cleanup
 from .fitting import add_fit_options
 
 
@@ -94,9 +95,13 @@ def run(args) -> int:
     job_list = jobs_from(args)
     dashboard = (args.dashboard or runner.DEFAULT_DASHBOARD) if args.dashboard is not False \
         else None
-    out = runner.run_batch(job_list, outdir=args.outdir, force=args.force, plot=args.plot,
-                           client=None, workers=args.workers, scheduler=args.scheduler,
-                           dashboard=dashboard, progress=False if args.quiet else None)
+    add_cleanup(runner.close_local_clusters)  # a signal stops the workers before the exit
+    try:
+        out = runner.run_batch(job_list, outdir=args.outdir, force=args.force, plot=args.plot,
+                               client=None, workers=args.workers, scheduler=args.scheduler,
+                               dashboard=dashboard, progress=False if args.quiet else None)
+    finally:
+        remove_cleanup(runner.close_local_clusters)
     print(table.summary(out.frame, out.wall_time, where=out.where))
     print("wrote " + ", ".join(str(p) for p in out.files))
     ok = bool(out.frame["success"].all())
