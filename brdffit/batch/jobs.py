@@ -63,10 +63,6 @@ class Job:
             names["plots"] = [p.name for p in figure_paths(f"{self.model}.png")]
         return names
 
-    def paths(self, outdir) -> dict:
-        folder = Path(outdir) / outdirs.check_component(self.material)
-        return {"json": folder / f"{self.model}.json", "meta": folder / f"{self.model}.meta.json",
-                "plot": folder / f"{self.model}.png"}
 
 
 def _canonical(value):
