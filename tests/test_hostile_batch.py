@@ -62,7 +62,7 @@ def _everything(folder):
 # --- names from data never leave the output folder --------------------------------------------
 
 @pytest.mark.parametrize("name", ["..", ".", "../x", "a/b", "/etc", "", ".hidden", "x\0y",
-                                  "\udcff\udcfe", "é" * 200, "a\\b", "-"])
+                                  "\udcff\udcfe", "é" * 200, "a\\b", "-", "x" * 2**20])
 def test_safe_name_is_one_plain_component(name):
     safe = inputs.safe_name(name)
     assert outdir.check_component(safe) == safe
@@ -219,6 +219,18 @@ def test_scheduler_addresses_are_checked_in_one_line(tmp_path, capsys, monkeypat
     monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", address)
     code, err = _main(capsys, "t.binary", "-m", "ggx", "-o", "out")
     assert code == 2 and f"DASK_SCHEDULER_ADDRESS {address!r}: " in err
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--dashboard=foo"], "--dashboard 'foo': not an address HOST:PORT"),
+    (["--dashboard", "--scheduler", "tcp://127.0.0.1:1"], "only a local cluster"),
+])
+def test_dashboard_address_is_checked(tmp_path, capsys, monkeypatch, args, message):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "t.binary").write_bytes(b"never read")
+    code, err = _main(capsys, "t.binary", "-m", "ggx", "-o", "out", *args)
+    assert code == 2 and err.count("\n") == 1 and message in err
+    assert not (tmp_path / "out").exists()
 
 
 def _read_only(folder):

@@ -161,7 +161,7 @@ def safe_name(name) -> str:
     Different names can map to one; :func:`materials` refuses such a clash."""
     text = "".join(c if c.isalnum() or c in "-_.+" else "_" for c in str(name))
     stripped = text.lstrip(".")
-    text = "_" * (len(text) - len(stripped)) + stripped
+    text = ("_" * (len(text) - len(stripped)) + stripped)[:NAME_MAX_BYTES]
     while len(text.encode("utf-8", "replace")) > NAME_MAX_BYTES:
         text = text[:-1]
     return text or "table"

@@ -71,6 +71,8 @@ def jobs_from(args):
 
     if args.workers is not None and args.workers < 1:
         raise UsageError(f"--workers {args.workers}: give at least 1")
+    if args.dashboard is not False:
+        _check_dashboard(args)
     if args.scheduler is not None:
         args.scheduler = runner.check_scheduler_address(args.scheduler)
     elif os.environ.get("DASK_SCHEDULER_ADDRESS"):
@@ -87,6 +89,24 @@ def jobs_from(args):
     if outdir.exists() and not outdir.is_dir():
         raise UsageError(f"--outdir {args.outdir}: exists and is not a folder")
     return runner.make_jobs(inputs.materials(args.inputs), models)
+
+
+def _check_dashboard(args) -> None:
+    """``--dashboard`` serves the local cluster's dashboard: ``HOST:PORT`` or ``:PORT``."""
+    if args.scheduler is not None:
+        raise UsageError("--dashboard: only a local cluster started by brdffit gets one; with "
+                         "--scheduler, open that scheduler's own dashboard")
+    if args.dashboard is None:
+        return
+    from distributed.comm.addressing import parse_host_port
+
+    try:
+        _, port = parse_host_port(args.dashboard)
+    except (ValueError, TypeError):
+        port = -1
+    if not 0 <= port < 65536:
+        raise UsageError(f"--dashboard {args.dashboard!r}: not an address HOST:PORT (write "
+                         "--dashboard=HOST:PORT, or put --dashboard after the inputs)")
 
 
 def run(args) -> int:
