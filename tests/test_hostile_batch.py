@@ -136,7 +136,7 @@ def test_a_link_planted_during_the_batch_is_never_followed(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "m").symlink_to(victim)
-    with pytest.raises(outdir.BatchOutputError, match="is a symbolic link"):
+    with pytest.raises(outdir.BatchOutputError, match=r"out/m: is a symbolic link"):
         with outdir.Folder.open(out, "m", create=True):
             pass
     (out / "m").unlink()

@@ -64,7 +64,6 @@ class Job:
         return names
 
 
-
 def _canonical(value):
     if isinstance(value, dict):
         return {str(k): _canonical(v) for k, v in sorted(value.items(), key=lambda kv: str(kv[0]))}

@@ -124,7 +124,7 @@ def _check_tree(outdir: str, folders: dict) -> None:
                 continue
             if not stat.S_ISDIR(st.st_mode):
                 raise _refuse(where, st, "a material's folder")
-            with _open_dir(material, root) as fd:
+            with _open_dir(material, root, where=where) as fd:
                 for name in files:
                     _check_file(fd, check_component(name), os.path.join(where, name))
 
@@ -142,15 +142,18 @@ def _probe(root: int, outdir: str) -> None:
 
 
 @contextlib.contextmanager
-def _open_dir(name, dir_fd, follow: bool = False):
+def _open_dir(name, dir_fd, follow: bool = False, where=None):
+    """A descriptor of folder ``name`` (relative to ``dir_fd``); ``where``: its path for
+    messages."""
     flags = os.O_RDONLY | _DIRECTORY | _CLOEXEC | (0 if follow else _NOFOLLOW)
+    where = where or name
     try:
         fd = os.open(name, flags, dir_fd=dir_fd)
     except OSError as exc:
         st = None if follow else _lstat(name, dir_fd)
         if st is not None and not stat.S_ISDIR(st.st_mode):
-            raise _refuse(name, st, "a material's folder") from None
-        raise BatchOutputError(f"{name}: cannot open the folder ({exc.strerror or exc})") \
+            raise _refuse(where, st, "a material's folder") from None
+        raise BatchOutputError(f"{where}: cannot open the folder ({exc.strerror or exc})") \
             from None
     try:
         yield fd
@@ -180,7 +183,7 @@ class Folder:
             elif _lstat(material, root) is None:
                 yield None
                 return
-            with _open_dir(material, root) as fd:
+            with _open_dir(material, root, where=path) as fd:
                 yield cls(fd, path)
 
     def read(self, name: str) -> bytes | None:

@@ -60,9 +60,12 @@ NO_HTTP = {"distributed.scheduler.http.routes": [], "distributed.worker.http.rou
 #: The schemes a scheduler address may have (``tls`` takes its credentials from Dask's
 #: configuration, ``distributed.comm.tls``).
 SCHEDULER_SCHEMES = ("tcp", "tls")
-_LIVE_CLUSTERS: set = set()
 #: The scheduler's dashboard address when ``--dashboard`` names none: loopback only.
 DEFAULT_DASHBOARD = "127.0.0.1:8787"
+
+
+#: The local clusters open now (for :func:`close_local_clusters`).
+_LIVE_CLUSTERS: set = set()
 
 
 class SchedulerError(BrdffitError):
@@ -173,9 +176,10 @@ def _local_cluster(n: int, dashboard: str | None):
             groups = pinning.core_groups(n)
             if n > 1 and groups:
                 c.register_plugin(pinning.PinCores(groups))
-            with dask.config.set(settings):
-                cluster.scale(n)
-                c.wait_for_workers(n)
+            with dask.config.set(settings):  # the nannies take the settings as they start
+                for _ in range(n):  # what scale(n) does, but waiting and raising as
+                    cluster.worker_spec.update(cluster.new_worker_spec())  # LocalCluster(n)
+                cluster.sync(cluster._correct_state)
             yield c, f"{n} local worker{'s' * (n != 1)}"
     finally:
         _LIVE_CLUSTERS.discard(cluster)
