@@ -304,6 +304,8 @@ def test_local_cluster_refuses_other_clients_and_serves_no_http(tmp_path):
             Client(address, security=stranger, timeout="3s")
         # Listening: the scheduler, the nanny and the worker's comms; no HTTP server at all.
         info = client.scheduler_info()
+        assert all(a.startswith("tls://127.0.0.1:") and w["nanny"].startswith("tls://127.0.0.1:")
+                   for a, w in info["workers"].items())  # every door needs the credentials
         comms = {port} | {parse_host_port(a)[1] for a in info["workers"]}
         comms |= {parse_host_port(w["nanny"])[1] for w in info["workers"].values()}
         pids = [os.getpid(), *client.run(os.getpid).values()]
