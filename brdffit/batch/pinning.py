@@ -64,4 +64,3 @@ class PinCores(WorkerPlugin):
         except (TypeError, ValueError):
             return
         pin_process(self.groups[k % len(self.groups)])
-
