@@ -2,13 +2,17 @@
 
 * :mod:`.inputs`: globs, paths and lists of paths → named materials; input checksums.
 * :mod:`.jobs`: one (material, model) fit on a worker, its files, the resume key.
+* :mod:`.outdir`: the output folder, checked before any work and written without following
+  links.
 * :mod:`.table`: the results table (columns, parquet/CSV, summary).
-* :mod:`.runner`: the cluster, the jobs' outcomes (a dead worker included), ``fit_many``.
+* :mod:`.runner`: the cluster (closed to other users, no HTTP server), the jobs' outcomes (a
+  dead worker included), ``fit_many``.
 """
 
 from .inputs import BatchInputError
-from .runner import SchedulerError, fit_many, open_client, run_batch
+from .outdir import BatchOutputError
+from .runner import SchedulerError, check_scheduler_address, fit_many, open_client, run_batch
 from .table import BASE_COLUMNS, OUTCOMES
 
-__all__ = ["BASE_COLUMNS", "OUTCOMES", "BatchInputError", "SchedulerError", "fit_many",
-           "open_client", "run_batch"]
+__all__ = ["BASE_COLUMNS", "OUTCOMES", "BatchInputError", "BatchOutputError", "SchedulerError",
+           "check_scheduler_address", "fit_many", "open_client", "run_batch"]

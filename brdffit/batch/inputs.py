@@ -2,7 +2,11 @@
 
 A *material* is one input table, named by its file stem (``gold-metallic-paint.binary`` →
 ``gold-metallic-paint``) or, for a table given in memory, by its ``name``. Every material needs
-its own name, because its results go to ``OUTDIR/<material>/``.
+its own name, because its results go to ``OUTDIR/<material>/``. A name comes from data, so it is
+made one safe folder name first (:func:`safe_name`): never ``..``, a path or a hidden name.
+
+A list of paths is UTF-8 text of at most :data:`LIST_MAX_BYTES` bytes, read line by line (no
+line longer than :data:`LINE_MAX_BYTES`); anything else is refused with the line it stopped at.
 """
 
 from __future__ import annotations
@@ -10,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import glob
 import hashlib
+import os
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +24,14 @@ from ..errors import BrdffitError
 #: Input formats by suffix; any other existing file given as an input is a list of paths.
 READERS = {".binary": "MERL table", ".csv": "sample list", ".npz": "sample list"}
 _GLOB_CHARS = set("*?[")
+#: The largest list of paths read (64 MiB: a million paths of 64 bytes); a larger one is
+#: refused before it is read.
+LIST_MAX_BYTES = 64 << 20
+#: The longest line of a list of paths (Linux's PATH_MAX).
+LINE_MAX_BYTES = 4096
+#: The longest material name, in UTF-8 bytes: a folder name, with room under NAME_MAX (255)
+#: for the file names a job writes in it.
+NAME_MAX_BYTES = 128
 
 
 class BatchInputError(BrdffitError):
@@ -69,15 +82,49 @@ def expand(items) -> list[str]:
 
 def _read_list(path: Path) -> list[str]:
     out = []
-    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
-        line = line.strip()
-        if not line or line.startswith("#"):
-            continue
-        p = Path(line) if Path(line).is_absolute() else path.parent / line
-        if not p.is_file():
-            raise BatchInputError(f"{path}, line {n}: {line}: no such file")
-        out.append(str(p))
+    try:
+        with open(path, "rb") as f:
+            size = os.fstat(f.fileno()).st_size
+            if size > LIST_MAX_BYTES:
+                raise BatchInputError(f"{path}: a list of {size:,} bytes; a list of paths holds "
+                                      f"at most {LIST_MAX_BYTES:,} bytes: split it, or give a "
+                                      "glob")
+            n, total = 0, 0
+            while raw := f.readline(LINE_MAX_BYTES + 2):
+                n, total = n + 1, total + len(raw)
+                if total > LIST_MAX_BYTES:  # grew while read
+                    raise BatchInputError(f"{path}: longer than {LIST_MAX_BYTES:,} bytes; a "
+                                          "list of paths holds no more: split it")
+                line = _list_line(path, n, raw)
+                if not line or line.startswith("#"):
+                    continue
+                p = Path(line) if Path(line).is_absolute() else path.parent / line
+                if not p.is_file():
+                    raise BatchInputError(f"{path}, line {n}: {line}: no such file")
+                out.append(str(p))
+    except OSError as exc:
+        raise BatchInputError(f"{path}: cannot read the list ({exc.strerror or exc})") from None
     return out
+
+
+def _list_line(path, n: int, raw: bytes) -> str:
+    """Line ``n`` of a list, decoded and stripped; :class:`BatchInputError` if it is not a
+    line of UTF-8 text that can name a path."""
+    text = raw.rstrip(b"\r\n")
+    if len(text) > LINE_MAX_BYTES:
+        raise BatchInputError(f"{path}, line {n}: longer than {LINE_MAX_BYTES} bytes, so not a "
+                              "path; a list of paths has one path per line")
+    try:
+        line = text.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise BatchInputError(
+            f"{path}, line {n}: not UTF-8 text (byte 0x{text[exc.start]:02x} at column "
+            f"{exc.start + 1}); a list of paths is a UTF-8 text file, one path per line, and "
+            "tables need the suffix .binary, .csv or .npz") from None
+    if "\0" in line:
+        raise BatchInputError(f"{path}, line {n}: contains a NUL byte, so not a path; a list of "
+                              "paths is a text file, one path per line")
+    return line.removeprefix("\ufeff").strip() if n == 1 else line.strip()
 
 
 def materials(paths_or_tables) -> list[Material]:
@@ -91,10 +138,10 @@ def materials(paths_or_tables) -> list[Material]:
     out: list[Material] = []
     for i, item in enumerate(paths_or_tables):
         if hasattr(item, "to_samples"):
-            name = _safe(getattr(item, "name", "") or f"table{i}")
+            name = safe_name(getattr(item, "name", "") or f"table{i}")
             out.append(Material(name, table=item))
         else:
-            out += [Material(_safe(Path(p).stem), path=p) for p in expand([item])]
+            out += [Material(safe_name(Path(p).stem), path=p) for p in expand([item])]
     seen: dict[str, str] = {}
     for m in out:
         if m.name in seen:
@@ -107,8 +154,17 @@ def materials(paths_or_tables) -> list[Material]:
     return out
 
 
-def _safe(name: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_.+" else "_" for c in str(name)) or "table"
+def safe_name(name) -> str:
+    """``name`` as one safe folder name: letters, digits and ``-_.+`` kept, anything else
+    (a separator, a control character, an undecodable byte) ``_``; leading dots ``_`` (never
+    ``.``, ``..`` or a hidden name); at most :data:`NAME_MAX_BYTES` bytes; ``table`` if empty.
+    Different names can map to one; :func:`materials` refuses such a clash."""
+    text = "".join(c if c.isalnum() or c in "-_.+" else "_" for c in str(name))
+    stripped = text.lstrip(".")
+    text = ("_" * (len(text) - len(stripped)) + stripped)[:NAME_MAX_BYTES]
+    while len(text.encode("utf-8", "replace")) > NAME_MAX_BYTES:
+        text = text[:-1]
+    return text or "table"
 
 
 def file_checksum(path) -> str:

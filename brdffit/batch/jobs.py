@@ -13,8 +13,11 @@ Files, for material ``m`` and model ``k`` under ``outdir``:
   last: a result counts as done only when its meta file exists and names the same checksum and
   options, so a job killed between two writes is simply fitted again.
 
-Every file is written atomically (:mod:`data_formats._atomic`): it appears complete or not at all;
-the temporary file of a job killed in mid-write is removed when the pair is fitted again.
+Every file is written atomically: it appears complete or not at all; the temporary file of a job
+killed in mid-write is removed when the pair is fitted again. Files are written and read through
+:class:`brdffit.batch.outdir.Folder`: never through a symbolic link or into a special file (such
+a refusal is the job's error); figures are drawn in a private staging folder in ``outdir`` and
+then moved into the material's folder.
 In a worker process the first job sets float64 (``jax_enable_x64``) and the persistent compilation
 cache (:mod:`brdffit.compilation_cache`); later jobs reuse the process's compiled programs (one
 compilation per model and table layout per worker). Fits within one process run one at a time.
@@ -31,7 +34,7 @@ import threading
 import time
 from pathlib import Path
 
-from . import inputs, table
+from . import inputs, outdir as outdirs, table
 
 _FIT_LOCK = threading.Lock()
 
@@ -51,10 +54,14 @@ class Job:
     fit_kwargs: dict
     key: str
 
-    def paths(self, outdir) -> dict:
-        folder = Path(outdir) / self.material
-        return {"json": folder / f"{self.model}.json", "meta": folder / f"{self.model}.meta.json",
-                "plot": folder / f"{self.model}.png"}
+    def names(self, plot: bool = False) -> dict:
+        """The file names this job writes in ``OUTDIR/<material>/`` (``plot``: with figures)."""
+        names = {"json": f"{self.model}.json", "meta": f"{self.model}.meta.json"}
+        if plot:
+            from ..plots import figure_paths
+
+            names["plots"] = [p.name for p in figure_paths(f"{self.model}.png")]
+        return names
 
 
 def _canonical(value):
@@ -125,8 +132,9 @@ def run(job: Job, table_data=None, outdir=None, force: bool = False, plot: bool 
         row, result = _fit_and_write(job, outdir, plot, base)
         row["job_time"] = time.perf_counter() - t0
         if outdir is not None:
-            _write_json(job.paths(outdir)["meta"], {"checksum": checksum, "options": job.key,
-                                                    "row": row})
+            with outdirs.Folder.open(outdir, job.material, create=True) as folder:
+                folder.write(job.names()["meta"], _json_bytes(
+                    {"checksum": checksum, "options": job.key, "row": row}))
         return {"row": row, "result": result.to_dict() if want_result else None}
     except Exception as exc:  # noqa: BLE001 (recorded in the table with its reason)
         row = {**base, **table.failure_row("error", f"{type(exc).__name__}: {exc}"),
@@ -148,22 +156,33 @@ def _fit_and_write(job: Job, outdir, plot: bool, base: dict):
         result = fit(data, job.model, throw=False, **job.fit_kwargs)
     row = {**base, **table.result_row(result)}
     if outdir is not None:
-        paths = job.paths(outdir)
-        paths["json"].parent.mkdir(parents=True, exist_ok=True)
-        _remove_stale(paths["json"].parent, job.model)
-        _write_text(paths["json"], result.to_json() + "\n")
-        row["result"] = str(paths["json"].relative_to(outdir))
-        if plot:
-            _plot(data, result, paths["plot"])
+        names = job.names()
+        with outdirs.Folder.open(outdir, job.material, create=True) as folder:
+            folder.remove(_stale_patterns(job.model))
+            folder.write(names["json"], (result.to_json() + "\n").encode("utf-8"))
+            if plot:
+                _plot_into(folder, outdir, data, result, job.model)
+        row["result"] = f"{job.material}/{names['json']}"
     return row, result
 
 
-def _remove_stale(folder: Path, model: str) -> None:
-    """Remove temporary files left by an earlier job of this (material, model) that was killed
-    while writing (an atomic write's ``.NAME.XXXX`` file; only this job writes these names)."""
-    for pattern in (f".{model}.json.*", f".{model}.meta.json.*", f".{model}-*.png.*"):
-        for stale in folder.glob(pattern):
-            stale.unlink(missing_ok=True)
+def _stale_patterns(model: str) -> tuple:
+    """Temporary files left by an earlier job of this (material, model) that was killed while
+    writing (an atomic write's ``.NAME.XXXX`` file; only this job writes these names)."""
+    return (f".{model}.json.*", f".{model}.meta.json.*", f".{model}-*.png.*")
+
+
+def _plot_into(folder, outdir, data, result, model: str) -> None:
+    """Draw the figures in a private staging folder in ``outdir``, then move them in."""
+    import shutil
+    import tempfile
+
+    stage = Path(tempfile.mkdtemp(prefix=".brdffit-", dir=outdir))
+    try:
+        for path in _plot(data, result, stage / f"{model}.png"):
+            folder.move_in(path, Path(path).name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
 
 
 def _plot(data, result, path) -> None:
@@ -174,36 +193,29 @@ def _plot(data, result, path) -> None:
     error = format_error(rms_log_error(data, model, result.params))
     if not result.success:
         error += " (fit NOT converged)"
-    diagnostics(data, model, result.params, path=path, error=error)
+    return diagnostics(data, model, result.params, path=path, error=error)
 
 
 def _existing(job: Job, outdir, checksum: str, plot: bool, want_result: bool) -> dict | None:
     """The stored row (and result) when ``job`` was done with the same input and options."""
-    paths = job.paths(outdir)
-    try:
-        meta = json.loads(paths["meta"].read_text(encoding="utf-8"))
-        text = paths["json"].read_text(encoding="utf-8") if want_result else None
-    except (OSError, ValueError):
-        return None
-    if meta.get("checksum") != checksum or meta.get("options") != job.key:
-        return None
-    if not paths["json"].is_file():
-        return None
-    if plot:
-        from ..plots import figure_paths
-
-        if not all(p.is_file() for p in figure_paths(paths["plot"])):
+    names = job.names(plot)
+    with outdirs.Folder.open(outdir, job.material, create=False) as folder:
+        if folder is None:
             return None
-    return {"row": dict(meta["row"]), "result": json.loads(text) if want_result else None}
+        meta, text = folder.read(names["meta"]), folder.read(names["json"])
+        if meta is None or text is None or not all(map(folder.is_file, names.get("plots", []))):
+            return None
+    try:
+        meta = json.loads(meta.decode("utf-8"))
+        if meta.get("checksum") != checksum or meta.get("options") != job.key:
+            return None
+        return {"row": dict(meta["row"]),
+                "result": json.loads(text.decode("utf-8")) if want_result else None}
+    except (ValueError, TypeError, KeyError, AttributeError):
+        return None
 
 
-def _write_text(path, text: str) -> None:
-    from data_formats._atomic import atomic_write
-
-    atomic_write(path, lambda f: f.write(text.encode("utf-8")))
-
-
-def _write_json(path, obj) -> None:
+def _json_bytes(obj) -> bytes:
     from ..fitting import json_safe
 
-    _write_text(path, json.dumps(json_safe(obj), indent=1) + "\n")
+    return (json.dumps(json_safe(obj), indent=1) + "\n").encode("utf-8")

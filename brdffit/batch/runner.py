@@ -4,14 +4,22 @@
 the same :func:`run_batch`. Where jobs run:
 
 * ``client``: an existing ``distributed.Client`` (its cluster is used as it is);
-* else ``scheduler`` or ``DASK_SCHEDULER_ADDRESS``: a running scheduler (``tcp://HOST:8786``);
-  input paths and the outdir must then be readable (and the outdir writable) by the workers;
+* else ``scheduler`` or ``DASK_SCHEDULER_ADDRESS``: a running scheduler (``tcp://HOST:8786``,
+  or ``tls://`` with Dask's TLS configuration; checked by :func:`check_scheduler_address` before
+  anything runs); input paths and the outdir must then be readable (and the outdir writable) by
+  the workers;
 * else a ``LocalCluster`` of ``workers`` processes (default: one per CPU core, at most one per
   2 GiB of memory: :func:`default_workers`), one thread each
   (a fit already uses every core it is given; two fits in one process would only queue),
   started for the batch and closed after it. Each local worker is pinned to its own share of
   the cores (:class:`brdffit.batch.pinning.PinCores`): XLA sizes its thread pool to the cores a process may use, so
   unpinned workers would each start a thread per core and oversubscribe the machine.
+  The local cluster is closed to other users of the machine: it listens on loopback only and
+  speaks TLS with credentials made for this batch alone (``Security.temporary()``: a key and
+  certificate that exist only in this process and its workers), so a connection without them
+  (any other process, another user) is refused before it can submit anything. No HTTP server
+  runs (the dashboard and metrics routes are off, and the listeners Dask opens anyway are
+  closed before any job), unless ``dashboard`` names an address for the scheduler's.
 
 Worker processes live for the whole batch, so each compiles a model's programs once per table
 layout and reuses them for every later job; the persistent compilation cache
@@ -32,7 +40,7 @@ import time
 import uuid
 
 from ..errors import BrdffitError
-from . import inputs, jobs, table
+from . import inputs, jobs, outdir as outdirs, table
 
 #: Scheduler settings of a local cluster started here. ``allowed-failures``: resubmissions of a
 #: job whose worker died, one retry for a transient cause (memory taken by a concurrent job),
@@ -47,8 +55,52 @@ WORKER_MEMORY = 2 * 2**30
 CONNECT_TIMEOUT = "20s"
 
 
+#: Settings of a local cluster without a dashboard: no HTTP routes on the scheduler or workers.
+NO_HTTP = {"distributed.scheduler.http.routes": [], "distributed.worker.http.routes": []}
+#: The schemes a scheduler address may have (``tls`` takes its credentials from Dask's
+#: configuration, ``distributed.comm.tls``).
+SCHEDULER_SCHEMES = ("tcp", "tls")
+#: The scheduler's dashboard address when ``--dashboard`` names none: loopback only.
+DEFAULT_DASHBOARD = "127.0.0.1:8787"
+
+
+#: The local clusters open now (for :func:`close_local_clusters`).
+_LIVE_CLUSTERS: set = set()
+
+
 class SchedulerError(BrdffitError):
-    """The scheduler named by ``--scheduler`` / ``DASK_SCHEDULER_ADDRESS`` cannot be reached."""
+    """The scheduler named by ``--scheduler`` / ``DASK_SCHEDULER_ADDRESS`` is not a valid
+    address or cannot be reached."""
+
+
+def check_scheduler_address(address, source: str = "--scheduler") -> str:
+    """``address`` (``tcp://HOST:PORT``, ``tls://HOST:PORT``, or ``HOST:PORT`` for tcp) if it is
+    one a scheduler can have; else :class:`SchedulerError` naming ``source`` (the option or
+    variable it came from)."""
+    text = str(address).strip()
+    hint = "give tcp://HOST:PORT (or tls://HOST:PORT with Dask's TLS configuration)"
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    if scheme.lower() not in SCHEDULER_SCHEMES:
+        why = (" (it reaches only a scheduler inside this process)" if scheme == "inproc"
+               else "")
+        raise SchedulerError(f"{source} {text!r}: scheme {scheme + '://'!r} is not "
+                             f"supported{why}; {hint}")
+    from distributed.comm.addressing import parse_host_port
+
+    try:
+        host, port = parse_host_port(rest)
+    except (ValueError, TypeError) as exc:
+        reason = str(exc) if "port" in str(exc) or "ipv6" in str(exc) else "port is not a number"
+        raise SchedulerError(f"{source} {text!r}: not a scheduler address ({reason}); "
+                             f"{hint}") from None
+    if not host or any(c.isspace() or c in "/?#@" for c in host):
+        raise SchedulerError(f"{source} {text!r}: not a scheduler address (host {host!r}); "
+                             f"{hint}")
+    if not 0 < port < 65536:
+        raise SchedulerError(f"{source} {text!r}: port {port} is not 1 to 65535; {hint}")
+    return f"{scheme.lower()}://{rest}"
 
 
 def default_workers() -> int:
@@ -65,39 +117,87 @@ def default_workers() -> int:
 
 
 @contextlib.contextmanager
-def open_client(client=None, *, workers: int | None = None, scheduler: str | None = None):
+def open_client(client=None, *, workers: int | None = None, scheduler: str | None = None,
+                dashboard: str | None = None):
     """Yield ``(client, description)``: the given client, one connected to ``scheduler`` (or
-    ``DASK_SCHEDULER_ADDRESS``), or one of a new local cluster of ``workers`` processes."""
+    ``DASK_SCHEDULER_ADDRESS``), or one of a new local cluster of ``workers`` processes (with
+    the scheduler's dashboard at ``dashboard``, an address like ``127.0.0.1:8787``, if given)."""
     if client is not None:
         yield client, "the given client"
         return
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
+    source = "--scheduler" if scheduler else "DASK_SCHEDULER_ADDRESS"
     address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
     if address:
+        address = check_scheduler_address(address, source)
         try:
             c = Client(address, timeout=CONNECT_TIMEOUT)
-        except (OSError, TimeoutError) as exc:
-            raise SchedulerError(f"cannot reach the Dask scheduler at {address!r} ({exc}); "
-                                 "check the address (tcp://HOST:8786) or unset "
-                                 "DASK_SCHEDULER_ADDRESS to run on local workers") from None
+        except (OSError, TimeoutError, TypeError, ValueError) as exc:
+            raise SchedulerError(f"cannot reach the Dask scheduler at {address!r} "
+                                 f"({type(exc).__name__}: {exc}); check the address "
+                                 "(tcp://HOST:8786) or unset DASK_SCHEDULER_ADDRESS to run on "
+                                 "local workers") from None
         with c:
             yield c, f"scheduler {address}"
         return
+    with _local_cluster(int(workers or default_workers()), dashboard) as c:
+        yield c
+
+
+@contextlib.contextmanager
+def _local_cluster(n: int, dashboard: str | None):
+    """A client of a new local cluster of ``n`` pinned worker processes (module docstring)."""
     import dask
+    from distributed import Client, LocalCluster
+    from distributed.security import Security
 
-    from . import pinning
+    from . import nohttp, pinning
 
-    n = int(workers or default_workers())
-    with dask.config.set(LOCAL_SCHEDULER):
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR,
-                               env={"MPLBACKEND": "Agg"})
-    with cluster, Client(cluster) as c:
-        groups = pinning.core_groups(n)
-        if n > 1 and groups:
-            c.register_plugin(pinning.PinCores(groups))
-        yield c, f"{n} local worker{'s' * (n != 1)}"
+    security = Security.temporary()
+    settings = {**LOCAL_SCHEDULER, **({} if dashboard else NO_HTTP)}
+    with dask.config.set(settings):
+        # Started without workers, so that a signal during their start finds the cluster
+        # (close_local_clusters); the workers are added below.
+        cluster = LocalCluster(n_workers=0, threads_per_worker=1, processes=True,
+                               host="127.0.0.1", protocol="tls://", security=security,
+                               dashboard_address=dashboard or None,
+                               # Without a dashboard, Dask's HTTP listener gets a free loopback
+                               # port (not 8787) and is closed below.
+                               scheduler_kwargs=None if dashboard else {
+                                   "dashboard": False, "dashboard_address": "127.0.0.1:0"},
+                               silence_logs=logging.ERROR, env={"MPLBACKEND": "Agg"})
+    _LIVE_CLUSTERS.add(cluster)
+    try:
+        with cluster, Client(cluster, security=security) as c:
+            if not dashboard:
+                nohttp.stop_http(cluster.scheduler)
+            c.register_plugin(nohttp.NoHttp())
+            groups = pinning.core_groups(n)
+            if n > 1 and groups:
+                c.register_plugin(pinning.PinCores(groups))
+            with dask.config.set(settings):  # the nannies take the settings as they start
+                for _ in range(n):  # what scale(n) does, but waiting and raising as
+                    cluster.worker_spec.update(cluster.new_worker_spec())  # LocalCluster(n)
+                cluster.sync(cluster._correct_state)
+            yield c, f"{n} local worker{'s' * (n != 1)}"
+    finally:
+        _LIVE_CLUSTERS.discard(cluster)
+
+
+def close_local_clusters(timeout: float = 5) -> None:
+    """Close the local clusters started here that still run: for a signal handler that is
+    about to end the process, so that the workers stop and their semaphores are released
+    (no "leaked semaphore" warning from ``multiprocessing``)."""
+    import signal
+
+    logging.disable(logging.CRITICAL)  # the process ends: lost jobs and workers are expected
+    for cluster in list(_LIVE_CLUSTERS):
+        for nanny in list(getattr(cluster, "_created", ())):  # a fit does not stop soon
+            with contextlib.suppress(Exception):
+                os.kill(nanny.process.process.pid, signal.SIGKILL)
+        with contextlib.suppress(Exception):
+            cluster.close(timeout=timeout)
 
 
 @dataclasses.dataclass
@@ -124,14 +224,25 @@ def make_jobs(mats, models_and_kwargs) -> list[jobs.Job]:
 
 
 def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=False,
-              client=None, workers=None, scheduler=None, progress=None) -> BatchOutcome:
-    """Run every job, collect one row per job (in job order), write the table if ``outdir``."""
+              client=None, workers=None, scheduler=None, dashboard=None,
+              progress=None) -> BatchOutcome:
+    """Run every job, collect one row per job (in job order), write the table if ``outdir``.
+
+    ``outdir`` is created and checked (writable, no link or special file where an output
+    belongs: :func:`brdffit.batch.outdir.prepare`) before the cluster starts, and removed again
+    if it was created and the cluster cannot start."""
     t0 = time.perf_counter()
-    outdir = None if outdir is None else os.path.abspath(outdir)
+    if outdir is not None:
+        outdir, created = outdirs.prepare(outdir, _files_by_folder(job_list, plot))
     outputs: dict[int, dict] = {}
-    with open_client(client, workers=workers, scheduler=scheduler) as (c, where):
-        if outdir is not None:
-            os.makedirs(outdir, exist_ok=True)
+    with contextlib.ExitStack() as stack:
+        try:
+            c, where = stack.enter_context(open_client(client, workers=workers,
+                                                       scheduler=scheduler, dashboard=dashboard))
+        except BaseException:
+            if outdir is not None:  # nothing ran: no output folder left behind
+                outdirs.remove_empty(created)
+            raise
         try:
             _collect(c, job_list, outputs, {"outdir": outdir, "force": force, "plot": plot,
                                                 "want_result": want_results}, progress)
@@ -145,6 +256,16 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
         results = [None if outputs[i]["result"] is None else
                    FitResult.from_dict(outputs[i]["result"]) for i in sorted(outputs)]
     return BatchOutcome(df, results, time.perf_counter() - t0, where, files)
+
+
+def _files_by_folder(job_list, plot: bool) -> dict:
+    """Material → the file names its jobs write in ``OUTDIR/<material>/``."""
+    folders: dict = {}
+    for job in job_list:
+        names = job.names(plot)
+        folders.setdefault(job.material, []).extend(
+            [names["json"], names["meta"], *names.get("plots", [])])
+    return folders
 
 
 def _collect(client, job_list, outputs, kwargs, progress) -> None:
@@ -250,7 +371,8 @@ class _Bar:
 
 def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool = False,
              plot: bool = False, return_results: bool = False, workers: int | None = None,
-             scheduler: str | None = None, progress: bool | None = False, **fit_options):
+             scheduler: str | None = None, dashboard: str | None = None,
+             progress: bool | None = False, **fit_options):
     """Fit every model in ``models`` to every input, on Dask; return a pandas DataFrame.
 
     Args:
@@ -261,7 +383,9 @@ def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool =
             list of names.
         client: a ``distributed.Client`` to run on; by default a scheduler at ``scheduler`` or
             ``DASK_SCHEDULER_ADDRESS``, else a local cluster of ``workers`` processes (one per
-            core) started for this call (:func:`open_client`).
+            core) started for this call (:func:`open_client`), closed to other users (TLS with
+            credentials of its own) and without an HTTP server unless ``dashboard`` gives the
+            scheduler's dashboard an address (``"127.0.0.1:8787"``).
         outdir: if given, each result is written to ``outdir/<material>/<model>.json`` (and
             figures with ``plot``), the table to ``outdir/results.parquet`` and ``.csv``, and
             results already there for the same input checksum and options are read back
@@ -285,5 +409,5 @@ def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool =
                          [(m, dict(fit_options)) for m in names])
     out = run_batch(job_list, outdir=outdir, force=force, plot=plot,
                     want_results=return_results, client=client, workers=workers,
-                    scheduler=scheduler, progress=progress)
+                    scheduler=scheduler, dashboard=dashboard, progress=progress)
     return (out.frame, out.results) if return_results else out.frame

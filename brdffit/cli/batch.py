@@ -8,16 +8,24 @@ described in :mod:`brdffit.batch`; where jobs run in :mod:`brdffit.batch.runner`
 
 Exit codes: 0 every (material, model) has a converged result; 1 some did not (not converged,
 an error, a worker that died; each is in the table with its reason); 2 the invocation was wrong
-(no input matched, unknown model, bad option, an outdir that is a file).
+(no input matched, a list of paths that is not UTF-8 text or too large, unknown model, bad
+option, a scheduler address that is not one, an outdir that is a file, not writable, or holds a
+symbolic link or special file where a result belongs). Every such check is made before any fit.
+
+The local cluster is closed to other users (TLS with credentials of its own, loopback only) and
+serves no HTTP; ``--dashboard [ADDR]`` starts the scheduler's dashboard (default
+``127.0.0.1:8787``, loopback only).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
 from ._common import UsageError
+from ._signals import add_cleanup, remove_cleanup
 from .fitting import add_fit_options
 
 
@@ -50,6 +58,9 @@ def add_parser(sub, parents) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="submit to a running Dask scheduler (tcp://HOST:8786; default "
                    "$DASK_SCHEDULER_ADDRESS); inputs and OUTDIR must be visible to its workers")
+    p.add_argument("--dashboard", nargs="?", const=None, default=False, metavar="ADDR",
+                   help="serve the local cluster's Dask dashboard at ADDR (default "
+                   "127.0.0.1:8787; without this option no HTTP server runs)")
     p.set_defaults(run=run)
 
 
@@ -60,6 +71,13 @@ def jobs_from(args):
 
     if args.workers is not None and args.workers < 1:
         raise UsageError(f"--workers {args.workers}: give at least 1")
+    if args.dashboard is not False:
+        _check_dashboard(args)
+    if args.scheduler is not None:
+        args.scheduler = runner.check_scheduler_address(args.scheduler)
+    elif os.environ.get("DASK_SCHEDULER_ADDRESS"):
+        runner.check_scheduler_address(os.environ["DASK_SCHEDULER_ADDRESS"],
+                                       "DASK_SCHEDULER_ADDRESS")
     names = [m.strip() for m in (args.model or "").split(",") if m.strip()]
     if not names:
         names = [None]  # the preset must name the model; options_from says so if it does not
@@ -73,13 +91,37 @@ def jobs_from(args):
     return runner.make_jobs(inputs.materials(args.inputs), models)
 
 
+def _check_dashboard(args) -> None:
+    """``--dashboard`` serves the local cluster's dashboard: ``HOST:PORT`` or ``:PORT``."""
+    if args.scheduler is not None:
+        raise UsageError("--dashboard: only a local cluster started by brdffit gets one; with "
+                         "--scheduler, open that scheduler's own dashboard")
+    if args.dashboard is None:
+        return
+    from distributed.comm.addressing import parse_host_port
+
+    try:
+        _, port = parse_host_port(args.dashboard)
+    except (ValueError, TypeError):
+        port = -1
+    if not 0 <= port < 65536:
+        raise UsageError(f"--dashboard {args.dashboard!r}: not an address HOST:PORT (write "
+                         "--dashboard=HOST:PORT, or put --dashboard after the inputs)")
+
+
 def run(args) -> int:
     from ..batch import runner, table
 
     job_list = jobs_from(args)
-    out = runner.run_batch(job_list, outdir=args.outdir, force=args.force, plot=args.plot,
-                           client=None, workers=args.workers, scheduler=args.scheduler,
-                           progress=False if args.quiet else None)
+    dashboard = (args.dashboard or runner.DEFAULT_DASHBOARD) if args.dashboard is not False \
+        else None
+    add_cleanup(runner.close_local_clusters)  # a signal stops the workers before the exit
+    try:
+        out = runner.run_batch(job_list, outdir=args.outdir, force=args.force, plot=args.plot,
+                               client=None, workers=args.workers, scheduler=args.scheduler,
+                               dashboard=dashboard, progress=False if args.quiet else None)
+    finally:
+        remove_cleanup(runner.close_local_clusters)
     print(table.summary(out.frame, out.wall_time, where=out.where))
     print("wrote " + ", ".join(str(p) for p in out.files))
     ok = bool(out.frame["success"].all())
