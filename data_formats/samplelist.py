@@ -129,8 +129,10 @@ def _pick_layout(path, columns) -> str:
 #: Most samples (rows) a sample list may hold: 2^24, the same bound as MERL cells
 #: (``data_formats.merl.MAX_CELLS``); its data then takes 1.2 GiB (9 float64 columns).
 MAX_SAMPLES = 2**24
-#: Longest line accepted before the header (comments, the header itself).
-_MAX_PREAMBLE_LINE = 1 << 20
+#: Longest line accepted anywhere in a CSV (a comment, the header, a data row: a row of 12
+#: numbers is well under 1 KiB). Longer lines are refused as they are read, so a file whose
+#: body is one huge line costs no more memory than this.
+MAX_LINE = 1 << 20
 #: Bytes per block of the streaming CSV parser (and per chunk of the fallback parser).
 _BLOCK = 1 << 22
 
@@ -142,24 +144,30 @@ def _too_many(path, n) -> SampleListFormatError:
     )
 
 
+def _lines(path, fh, lineno: int = 0, where: str = ""):
+    """``(1-based line number, raw bytes)`` of the lines of ``fh`` from its position (the
+    first one numbered ``lineno + 1``), each read with at most :data:`MAX_LINE` bytes: a longer
+    line is a :class:`SampleListFormatError` before it is held in memory."""
+    while raw := fh.readline(MAX_LINE):
+        lineno += 1
+        if len(raw) >= MAX_LINE and not raw.endswith(b"\n"):
+            raise SampleListFormatError(
+                f"{path}: line {lineno} is longer than {MAX_LINE:,} bytes{where}; a sample list "
+                f"has one short row of numbers per line"
+            )
+        yield lineno, raw
+
+
 def _read_preamble(path, fh) -> tuple[list[str], int]:
     """Skip comment and blank lines, read the header; returns its names and 1-based line."""
-    lineno = 0
-    while True:
-        raw = fh.readline(_MAX_PREAMBLE_LINE)
-        lineno += 1
-        if not raw:
-            raise SampleListFormatError(
-                f"{path}: no header row; a CSV sample list needs a header naming {_layout_text()}"
-            )
-        if len(raw) >= _MAX_PREAMBLE_LINE and not raw.endswith(b"\n"):
-            raise SampleListFormatError(
-                f"{path}: line {lineno} is longer than {_MAX_PREAMBLE_LINE:,} bytes before any "
-                f"header; not a CSV sample list"
-            )
+    for lineno, raw in _lines(path, fh, where=" before any header"):
         line = raw.decode("utf-8")
         if line.strip() and not line.lstrip().startswith("#"):
             break
+    else:
+        raise SampleListFormatError(
+            f"{path}: no header row; a CSV sample list needs a header naming {_layout_text()}"
+        )
     header = [c.strip().lower() for c in line.rstrip("\r\n").split(",")]
     if any(_is_number(c) for c in header):
         raise SampleListFormatError(
@@ -182,7 +190,7 @@ class _LineNumbers:
 
     def __getitem__(self, i) -> int:
         with open_regular(self.path, "rb") as fh:
-            for lineno, raw in enumerate(fh, start=1):
+            for lineno, raw in _lines(self.path, fh):
                 if lineno > self.header_line and _is_data(raw):
                     if i == 0:
                         return lineno
@@ -271,7 +279,7 @@ def _concatenate(chunks, width) -> np.ndarray:
 def _parse_slowly(path, fh, header, header_line) -> np.ndarray:
     """Line by line with Python's ``float``, in bounded chunks; names the first bad field."""
     chunks, block, n = [], [], 0
-    for lineno, raw in enumerate(fh, start=header_line + 1):
+    for lineno, raw in _lines(path, fh, header_line):
         if not _is_data(raw):
             continue
         fields = raw.decode("utf-8").rstrip("\r\n").split(",")
