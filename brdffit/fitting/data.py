@@ -257,12 +257,18 @@ def screen(rgb: np.ndarray, good: np.ndarray) -> tuple[tuple[str, int], ...]:
     with np.errstate(invalid="ignore"):
         for reason, bad in (("not finite", ~np.all(np.isfinite(rgb), axis=1)),
                             ("negative", np.any(rgb < 0, axis=1)),
-                            (f"above {MAX_BRDF:g}/sr", np.any(rgb > MAX_BRDF, axis=1))):
+                            (f"above {_power(MAX_BRDF)}/sr", np.any(rgb > MAX_BRDF, axis=1))):
             hit = np.count_nonzero(bad & good)
             if hit:
                 out.append((reason, int(hit)))
                 good &= ~bad
     return tuple(out)
+
+
+def _power(x: float) -> str:
+    """``1e7`` for 1e7 (``format`` writes ``1e+07``)."""
+    mantissa, exponent = f"{x:.0e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
 
 
 def screened_text(name: str, screened) -> str:
