@@ -31,9 +31,12 @@ Optional measurement uncertainty (a gonioreflectometer's error bars): either one
 :class:`~data_formats.samples.SampleSet` then carries ``sigma`` ``(N, 3)``, and a fit weights
 each residual by it.
 
-Limits: at most :data:`MAX_SAMPLES` (2^24) rows; only regular files are read (a FIFO or a
-device such as ``/dev/zero`` is refused before it is opened); an NPZ member's declared shape,
-dtype and size are checked against the archive and the limit before anything is decompressed.
+Limits: at most :data:`MAX_SAMPLES` (2^24) rows; lines of at most :data:`MAX_LINE` bytes (a
+longer one is refused as it is read); only regular files are read (a FIFO or a device such as
+``/dev/zero`` is refused before it is opened); an NPZ member's declared shape, dtype and size
+are checked against the archive and the limit before anything is decompressed. The values are
+checked, and can be read (:func:`iter_samples`), in pieces of :data:`PIECE_ROWS` rows, so
+memory holds the result (or one piece) and, for a CSV, its parsed columns.
 
 No other columns are accepted (a misspelt column must not be ignored silently). Every row must be
 usable: a NaN/inf, a negative colour value, a direction below the horizon (θ > 90°, ``z < 0``) or
