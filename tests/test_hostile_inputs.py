@@ -125,7 +125,7 @@ def test_no_cell_of_a_real_material_is_masked():
 # -- out of memory ------------------------------------------------------------------------------
 def test_a_fit_too_large_for_the_memory_is_refused_up_front():
     with pytest.raises(FitError, match=r"fitting 1,000,000,000,000 cells needs about .* GiB "
-                                       r"more memory \(224 bytes a cell\) and the system has"):
+                                       r"more memory \(256 bytes a cell\) and the system has"):
         check_memory(10**12, "huge", backend="cpu")
     check_memory(1000, "small", backend="cpu")  # no error
 

@@ -9,10 +9,10 @@ Selection happens in two stages, so that every table of one layout compiles once
   non-finite, negative, or above :data:`MAX_BRDF`, which no measurement gives) become zero
   weights and zero targets; cells that are marked valid but fail the screening are counted by
   reason and reported in one :class:`MaskedValuesWarning`. Masked cells cost compute but never
-  change the shapes. A sample
-  list with measurement uncertainties (``SampleSet.sigma``) weights each residual by
-  ``1/σ`` carried through the loss's transform (:func:`sigma_weight`); a monochrome one
-  (``SampleSet.channels == 1``) gives channels 1 and 2 zero weight.
+  change the shapes. A sample list with measurement uncertainties (``SampleSet.sigma``)
+  weights each residual by ``1/σ`` carried through the loss's transform
+  (:func:`sigma_weight`); a monochrome one (``SampleSet.channels == 1``) gives channels 1 and
+  2 zero weight.
 * **the angle measure** (``weighting="angles"``, the default): each residual is multiplied by
   ``sqrt(w)``, ``w`` the share of the angle domain ``(θh, θd, φd)`` its sample stands for
   (``SampleSet.weight``, :func:`measure_weight`) scaled to mean 1 over the cells used, so that
@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import resource
 import warnings
 
 import equinox as eqx
@@ -50,6 +49,11 @@ import numpy as np
 from ..config import check_fit_options
 from ..errors import ConfigError, FitError, UnknownNameError
 from .losses import Loss
+
+try:
+    import resource
+except ImportError:  # pragma: no cover - not on Windows: no address-space limit to check
+    resource = None
 
 #: Fewer usable cells than this (times the number of free parameters) is an error.
 MIN_CELLS_PER_PARAM = 3
@@ -208,7 +212,8 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
     good[:k] = np.asarray(samples.valid, bool)[rows]
     screened = screen(rgb, good)
     if screened:
-        warnings.warn(MaskedValuesWarning(screened_text(samples.name, screened)), stacklevel=2)
+        name = getattr(samples, "name", "")
+        warnings.warn(MaskedValuesWarning(screened_text(name, screened)), stacklevel=2)
     rgb[~good] = 0.0
     sw = loss.weight(rgb, wi[:, 2:3], wo[:, 2:3]) * good[:, None]
     if getattr(samples, "sigma", None) is not None:
@@ -283,12 +288,14 @@ def screened_text(name: str, screened) -> str:
 #: Bytes a fit holds per selected cell beyond its input, on the CPU (the host gathers of
 #: :func:`select`, the device copies of the directions, values, targets and weights, the
 #: solver's per-pass buffers): measured 200 bytes (address space) and 181 (resident) for
-#: 2^22 cells of a ``ggx`` fit, a little more allowed.
-FIT_BYTES_PER_CELL = 224
+#: 2^22 cells of a ``ggx`` fit, and 7.3 GB of address space at the peak of a 2^24-cell fit
+#: that held 2.7 GB before it; a margin allowed.
+FIT_BYTES_PER_CELL = 256
 #: Bytes on an accelerator's host (the host gathers only; the device holds the rest).
 HOST_BYTES_PER_CELL = 112
-#: What a fit maps besides the cells (the compiled programs, XLA's buffers): measured 0.3 GB.
-FIT_FIXED_BYTES = 512 << 20
+#: What a fit maps besides the cells (the compiled programs, XLA's buffers): measured 0.3 GB
+#: for small fits; a margin allowed.
+FIT_FIXED_BYTES = 768 << 20
 
 
 def _proc_kib(path: str, key: str) -> int | None:
@@ -315,9 +322,10 @@ def check_memory(n_cells: int, name: str = "", backend: str | None = None) -> No
     per_cell = FIT_BYTES_PER_CELL if backend == "cpu" else HOST_BYTES_PER_CELL
     need = FIT_FIXED_BYTES + per_cell * int(n_cells)
     limits = []
-    soft, _hard = resource.getrlimit(resource.RLIMIT_AS)
+    soft, _hard = (resource.getrlimit(resource.RLIMIT_AS) if resource is not None
+                   else (None, None))
     mapped = _proc_kib("/proc/self/status", "VmSize")
-    if soft != resource.RLIM_INFINITY and mapped is not None:
+    if soft not in (None, getattr(resource, "RLIM_INFINITY", None)) and mapped is not None:
         limits.append((soft - mapped, f"its address-space limit (ulimit -v, {_gb(soft)}) "
                                       f"leaves {_gb(max(soft - mapped, 0))}"))
     available = _proc_kib("/proc/meminfo", "MemAvailable")
