@@ -553,6 +553,7 @@ def _pieces(path, rows: int):
     if not path.exists():
         raise SampleListFormatError(f"{path}: no such file")
     csv = path.suffix.lower() == ".csv"
+    rows = max(1, int(rows))
     source = _csv_pieces(path, rows) if csv else _npz_pieces(path, rows)
     with _format_errors(path):
         columns, n, _, _ = next(source)

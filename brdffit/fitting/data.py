@@ -493,7 +493,8 @@ def check_enough(selection: Selection, n_free: int, name: str = "") -> None:
     if selection.n_used < need:
         raise FitError(
             f"table {name or '(unnamed)'} has {selection.n_used} usable valid cells out of "
-            f"{selection.n_total} (above the horizon, within the cutoff, finite, non-negative); "
+            f"{selection.n_total} (above the horizon, within the cutoff, finite, non-negative, "
+            f"at most {_power(MAX_BRDF)}/sr); "
             f"fitting {n_free} free parameters needs at least {need}. Check the validity mask "
             f"and NaNs in the data, or relax `cutoff`/`subsample`."
         )
