@@ -98,6 +98,9 @@ def streamed_info(pieces, n: int | None = None) -> dict:
     for piece in pieces:
         figures = figures or _Figures(piece, n)
         figures.add(piece)
+    if figures is None:  # no pieces: no samples
+        return {"format": "sample list", "path": None, "samples": 0, "valid": 0,
+                "valid_fraction": 0.0, "channels": 3, "sigma": False}
     return figures.result()
 
 
