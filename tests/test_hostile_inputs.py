@@ -130,15 +130,19 @@ def test_a_fit_too_large_for_the_memory_is_refused_up_front():
     check_memory(1000, "small", backend="cpu")  # no error
 
 
-def test_xla_out_of_memory_is_the_documented_line(monkeypatch, capsys):
-    """XLA's RESOURCE_EXHAUSTED (raised by JAX as a ValueError from a transfer, or as a
-    JaxRuntimeError) anywhere in a command: one line, exit 2 (before: a 35-line traceback,
-    exit 1)."""
+@pytest.mark.parametrize("text", [
+    "RESOURCE_EXHAUSTED: Out of memory allocating 402653184 bytes.",  # jax.device_put
+    "INTERNAL: Error dispatching computation: Out of memory allocating 402653184 bytes.",
+])
+def test_xla_out_of_memory_is_the_documented_line(monkeypatch, capsys, text):
+    """XLA's out-of-memory (raised by JAX as a ValueError from a transfer, or as a
+    JaxRuntimeError from a running program) anywhere in a command: one line, exit 2 (before: a
+    35-line traceback, exit 1)."""
     from brdffit.cli import info
 
     def exhausted(args):
         try:
-            raise ValueError("RESOURCE_EXHAUSTED: Out of memory allocating 402653184 bytes.")
+            raise ValueError(text)
         except ValueError as exc:
             raise RuntimeError("while fitting") from exc
 

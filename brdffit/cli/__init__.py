@@ -219,11 +219,14 @@ OUT_OF_MEMORY = ("out of memory; the input is too large for this machine (see th
 def _out_of_memory(exc: BaseException) -> bool:
     """``exc``, or an exception it was raised from, is a failed allocation: a ``MemoryError``,
     or XLA's status ``RESOURCE_EXHAUSTED`` (which JAX raises as a ``JaxRuntimeError``, or as
-    a ``ValueError`` from a transfer such as ``jax.device_put``)."""
+    a ``ValueError`` from a transfer such as ``jax.device_put``), or XLA's ``INTERNAL: Error
+    dispatching computation: Out of memory allocating …`` (a program that ran out)."""
     seen = set()
     while exc is not None and id(exc) not in seen:
         seen.add(id(exc))
-        if isinstance(exc, MemoryError) or str(exc).lstrip().startswith("RESOURCE_EXHAUSTED"):
+        text = str(exc).lstrip()
+        if (isinstance(exc, MemoryError) or text.startswith("RESOURCE_EXHAUSTED")
+                or "out of memory allocating" in text.lower()):
             return True
         exc = exc.__cause__ or exc.__context__
     return False
