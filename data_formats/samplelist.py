@@ -31,9 +31,12 @@ Optional measurement uncertainty (a gonioreflectometer's error bars): either one
 :class:`~data_formats.samples.SampleSet` then carries ``sigma`` ``(N, 3)``, and a fit weights
 each residual by it.
 
-Limits: at most :data:`MAX_SAMPLES` (2^24) rows; only regular files are read (a FIFO or a
-device such as ``/dev/zero`` is refused before it is opened); an NPZ member's declared shape,
-dtype and size are checked against the archive and the limit before anything is decompressed.
+Limits: at most :data:`MAX_SAMPLES` (2^24) rows; lines of at most :data:`MAX_LINE` bytes (a
+longer one is refused as it is read); only regular files are read (a FIFO or a device such as
+``/dev/zero`` is refused before it is opened); an NPZ member's declared shape, dtype and size
+are checked against the archive and the limit before anything is decompressed. The values are
+checked, and can be read (:func:`iter_samples`), in pieces of :data:`PIECE_ROWS` rows, so
+memory holds the result (or one piece) and, for a CSV, its parsed columns.
 
 No other columns are accepted (a misspelt column must not be ignored silently). Every row must be
 usable: a NaN/inf, a negative colour value, a direction below the horizon (θ > 90°, ``z < 0``) or
@@ -129,8 +132,10 @@ def _pick_layout(path, columns) -> str:
 #: Most samples (rows) a sample list may hold: 2^24, the same bound as MERL cells
 #: (``data_formats.merl.MAX_CELLS``); its data then takes 1.2 GiB (9 float64 columns).
 MAX_SAMPLES = 2**24
-#: Longest line accepted before the header (comments, the header itself).
-_MAX_PREAMBLE_LINE = 1 << 20
+#: Longest line accepted anywhere in a CSV (a comment, the header, a data row: a row of 12
+#: numbers is well under 1 KiB). Longer lines are refused as they are read, so a file whose
+#: body is one huge line costs no more memory than this.
+MAX_LINE = 1 << 20
 #: Bytes per block of the streaming CSV parser (and per chunk of the fallback parser).
 _BLOCK = 1 << 22
 
@@ -142,24 +147,30 @@ def _too_many(path, n) -> SampleListFormatError:
     )
 
 
+def _lines(path, fh, lineno: int = 0, where: str = ""):
+    """``(1-based line number, raw bytes)`` of the lines of ``fh`` from its position (the
+    first one numbered ``lineno + 1``), each read with at most :data:`MAX_LINE` bytes: a longer
+    line is a :class:`SampleListFormatError` before it is held in memory."""
+    while raw := fh.readline(MAX_LINE):
+        lineno += 1
+        if len(raw) >= MAX_LINE and not raw.endswith(b"\n"):
+            raise SampleListFormatError(
+                f"{path}: line {lineno} is longer than {MAX_LINE:,} bytes{where}; a sample list "
+                f"has one short row of numbers per line"
+            )
+        yield lineno, raw
+
+
 def _read_preamble(path, fh) -> tuple[list[str], int]:
     """Skip comment and blank lines, read the header; returns its names and 1-based line."""
-    lineno = 0
-    while True:
-        raw = fh.readline(_MAX_PREAMBLE_LINE)
-        lineno += 1
-        if not raw:
-            raise SampleListFormatError(
-                f"{path}: no header row; a CSV sample list needs a header naming {_layout_text()}"
-            )
-        if len(raw) >= _MAX_PREAMBLE_LINE and not raw.endswith(b"\n"):
-            raise SampleListFormatError(
-                f"{path}: line {lineno} is longer than {_MAX_PREAMBLE_LINE:,} bytes before any "
-                f"header; not a CSV sample list"
-            )
+    for lineno, raw in _lines(path, fh, where=" before any header"):
         line = raw.decode("utf-8")
         if line.strip() and not line.lstrip().startswith("#"):
             break
+    else:
+        raise SampleListFormatError(
+            f"{path}: no header row; a CSV sample list needs a header naming {_layout_text()}"
+        )
     header = [c.strip().lower() for c in line.rstrip("\r\n").split(",")]
     if any(_is_number(c) for c in header):
         raise SampleListFormatError(
@@ -182,7 +193,7 @@ class _LineNumbers:
 
     def __getitem__(self, i) -> int:
         with open_regular(self.path, "rb") as fh:
-            for lineno, raw in enumerate(fh, start=1):
+            for lineno, raw in _lines(self.path, fh):
                 if lineno > self.header_line and _is_data(raw):
                     if i == 0:
                         return lineno
@@ -271,7 +282,7 @@ def _concatenate(chunks, width) -> np.ndarray:
 def _parse_slowly(path, fh, header, header_line) -> np.ndarray:
     """Line by line with Python's ``float``, in bounded chunks; names the first bad field."""
     chunks, block, n = [], [], 0
-    for lineno, raw in enumerate(fh, start=header_line + 1):
+    for lineno, raw in _lines(path, fh, header_line):
         if not _is_data(raw):
             continue
         fields = raw.decode("utf-8").rstrip("\r\n").split(",")
@@ -313,17 +324,29 @@ _NPZ_ERRORS = (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError, Ru
                NotImplementedError, KeyError)
 #: The largest ``.npy`` header accepted (NumPy's own reading limit).
 _MAX_NPY_HEADER = 10_000
+#: Rows per piece: the checks run, and :func:`iter_samples` yields, this many rows at a time
+#: (56 MiB of float64 columns at most), so no check allocates more than a piece's worth.
+PIECE_ROWS = 1 << 20
 
 
-def _read_npz(path: Path) -> tuple[list[str], np.ndarray]:
-    """Column names and the ``(N, C)`` float data of an NPZ archive, every size checked first.
+def _npz_error(path, exc) -> SampleListFormatError:
+    return SampleListFormatError(
+        f"{path}: not a readable NPZ archive ({type(exc).__name__}: {exc}); write it with "
+        f"numpy.savez(path, theta_i=..., ...)"
+    )
+
+
+def _npz_pieces(path: Path, rows: int):
+    """The NPZ archive at ``path`` as ``(names, n, start, piece)``: first ``(names, n, None,
+    None)``, then the ``(k, C)`` float64 rows ``start … start + k`` (``k ≤ rows``).
 
     Nothing is decompressed before the member names form a layout and each member's declared
     size (the zip directory's and the ``.npy`` header's shape and dtype) is within
-    :data:`MAX_SAMPLES` and consistent with the other: a zip bomb or a header declaring
-    ``shape=(10**15,)`` is refused before any allocation. Object, complex, datetime, timedelta,
-    bool, string and structured dtypes are refused (only real integers and floats are numbers
-    here). Pickles are never loaded.
+    :data:`MAX_SAMPLES` and equal to the others': a zip bomb or a header declaring
+    ``shape=(10**15,)`` is refused before any allocation. Then every member is decompressed
+    side by side, ``rows`` values at a time, so memory holds one piece, never a whole column.
+    Object, complex, datetime, timedelta, bool, string and structured dtypes are refused (only
+    real integers and floats are numbers here). Pickles are never loaded.
     """
     with open_regular(path, "rb") as fh:
         try:
@@ -331,23 +354,33 @@ def _read_npz(path: Path) -> tuple[list[str], np.ndarray]:
                 members = archive.infolist()
                 names = [_column_name(path, info) for info in members]
                 _pick_layout(path, names)
-                arrays = [_read_member(path, archive, info, name)
-                          for info, name in zip(members, names)]
+                heads = [_member_header(path, archive, info, name)
+                         for info, name in zip(members, names)]
+                lengths = {n for n, _, _ in heads}
+                if len(lengths) > 1:
+                    detail = ", ".join(f"{name}: {n}" for name, (n, _, _) in zip(names, heads))
+                    raise SampleListFormatError(f"{path}: arrays differ in length ({detail})")
+                n = lengths.pop() if lengths else 0
+                yield names, n, None, None
+                streams = [archive.open(info) for info in members]
+                for stream, (_, _, skip) in zip(streams, heads):
+                    stream.read(skip)
+                for start in range(0, n, rows):
+                    k = min(rows, n - start)
+                    piece = np.empty((k, len(names)))
+                    for c, (stream, (_, dtype, _)) in enumerate(zip(streams, heads)):
+                        raw = stream.read(k * dtype.itemsize)
+                        if len(raw) != k * dtype.itemsize:
+                            raise SampleListFormatError(f"{path}: array {names[c]!r} is truncated")
+                        piece[:, c] = np.frombuffer(raw, dtype=dtype)
+                    yield names, n, start, piece
+                for stream in streams:
+                    stream.read()  # to the end: zipfile checks the CRC there
+                    stream.close()
         except SampleListFormatError:
             raise
         except _NPZ_ERRORS as exc:
-            raise SampleListFormatError(
-                f"{path}: not a readable NPZ archive ({type(exc).__name__}: {exc}); write it with "
-                f"numpy.savez(path, theta_i=..., ...)"
-            ) from None
-    lengths = {len(a) for a in arrays}
-    if len(lengths) > 1:
-        detail = ", ".join(f"{n}: {len(a)}" for n, a in zip(names, arrays))
-        raise SampleListFormatError(f"{path}: arrays differ in length ({detail})")
-    data = np.empty((lengths.pop() if lengths else 0, len(arrays)))
-    for c, arr in enumerate(arrays):
-        data[:, c] = arr
-    return names, data
+            raise _npz_error(path, exc) from None
 
 
 def _column_name(path, info) -> str:
@@ -359,8 +392,9 @@ def _column_name(path, info) -> str:
     return info.filename[:-4].strip().lower()
 
 
-def _read_member(path, archive, info, name) -> np.ndarray:
-    """One member's 1-D array, its header checked against the limits and the zip directory."""
+def _member_header(path, archive, info, name) -> tuple[int, np.dtype, int]:
+    """``(length, dtype, header bytes)`` of one member, its ``.npy`` header checked against
+    the limits and the zip directory (only the header is decompressed)."""
     limit = MAX_SAMPLES * 8 + _MAX_NPY_HEADER
     if info.file_size > limit:
         raise SampleListFormatError(
@@ -375,16 +409,12 @@ def _read_member(path, archive, info, name) -> np.ndarray:
         _check_member(path, name, shape, dtype)
         nbytes = int(shape[0]) * dtype.itemsize
         header_bytes = member.tell()
-        if header_bytes + nbytes != info.file_size:
-            raise SampleListFormatError(
-                f"{path}: array {name!r} declares {shape[0]:,} values of {dtype} ({nbytes:,} "
-                f"bytes) but the archive holds {info.file_size - header_bytes:,} bytes for it"
-            )
-        raw = member.read(nbytes)
-        member.read()  # to the end: zipfile checks the CRC there
-    if len(raw) != nbytes:
-        raise SampleListFormatError(f"{path}: array {name!r} is truncated")
-    return np.frombuffer(raw, dtype=dtype)
+    if header_bytes + nbytes != info.file_size:
+        raise SampleListFormatError(
+            f"{path}: array {name!r} declares {shape[0]:,} values of {dtype} ({nbytes:,} "
+            f"bytes) but the archive holds {info.file_size - header_bytes:,} bytes for it"
+        )
+    return int(shape[0]), dtype, header_bytes
 
 
 def _check_member(path, name, shape, dtype) -> None:
@@ -402,6 +432,15 @@ def _check_member(path, name, shape, dtype) -> None:
         )
 
 
+def _csv_pieces(path: Path, rows: int):
+    """The CSV at ``path`` as :func:`_npz_pieces` gives an archive: ``(names, n, None,
+    None)``, then views of ``rows`` rows of the parsed ``(N, C)`` data at a time."""
+    columns, data, _lines_of = _read_csv(path)
+    yield columns, len(data), None, None
+    for start in range(0, len(data), rows):
+        yield columns, len(data), start, data[start:start + rows]
+
+
 def _where(path, rows, i) -> str:
     """``path: line L`` (CSV) or ``path: row R`` (NPZ, 0-based array index) for sample ``i``."""
     return f"{path}: line {rows[i]}" if rows is not None else f"{path}: row {i}"
@@ -411,17 +450,18 @@ def _first_bad(mask) -> int:
     return int(np.flatnonzero(mask)[0])
 
 
-def _check_finite(path, columns, data, rows) -> None:
+def _check_finite(path, columns, data, rows, start=0) -> None:
     bad = ~np.isfinite(data)
     if bad.any():
         i, c = np.argwhere(bad)[0]
         raise SampleListFormatError(
-            f"{_where(path, rows, i)}, column {columns[c]!r}: value {float(data[i, c])} is not finite; "
-            f"every sample needs finite numbers (remove or repair the row)"
+            f"{_where(path, rows, start + i)}, column {columns[c]!r}: value "
+            f"{float(data[i, c])} is not finite; every sample needs finite numbers (remove or "
+            f"repair the row)"
         )
 
 
-def _directions(path, cols: dict, rows, side: str) -> np.ndarray:
+def _directions(path, cols: dict, rows, side: str, start=0) -> np.ndarray:
     """Unit directions for ``side`` ('i' or 'o') from angle or vector columns, checked."""
     if f"theta_{side}" in cols:
         theta, phi = cols[f"theta_{side}"], cols[f"phi_{side}"]
@@ -429,8 +469,8 @@ def _directions(path, cols: dict, rows, side: str) -> np.ndarray:
             if bad.any():
                 i = _first_bad(bad)
                 raise SampleListFormatError(
-                    f"{_where(path, rows, i)}, column 'theta_{side}': {theta[i]:g}° is {what}; "
-                    f"θ is measured from the normal in degrees, 0 ≤ θ ≤ 90"
+                    f"{_where(path, rows, start + i)}, column 'theta_{side}': {theta[i]:g}° is "
+                    f"{what}; θ is measured from the normal in degrees, 0 ≤ θ ≤ 90"
                 )
         t, p = np.radians(theta), np.radians(phi)
         cos_t = np.where(theta == 90, 0.0, np.cos(t))  # cos(π/2) is 6e-17 in floating point
@@ -440,25 +480,24 @@ def _directions(path, cols: dict, rows, side: str) -> np.ndarray:
     if (w[:, 2] < 0).any():
         i = _first_bad(w[:, 2] < 0)
         raise SampleListFormatError(
-            f"{_where(path, rows, i)}, column 'w{side}z': {w[i, 2]:g} < 0, the direction is below "
-            f"the horizon; directions point away from the surface with z along the normal"
+            f"{_where(path, rows, start + i)}, column 'w{side}z': {w[i, 2]:g} < 0, the direction "
+            f"is below the horizon; directions point away from the surface with z along the normal"
         )
     norm = np.linalg.norm(w, axis=-1)
     bad = np.abs(norm - 1.0) > UNIT_TOLERANCE
     if bad.any():
         i = _first_bad(bad)
         raise SampleListFormatError(
-            f"{_where(path, rows, i)}, columns {','.join(names)}: length {norm[i]:.6g} is not 1 "
-            f"(tolerance {UNIT_TOLERANCE:g}); give unit vectors"
+            f"{_where(path, rows, start + i)}, columns {','.join(names)}: length {norm[i]:.6g} is "
+            f"not 1 (tolerance {UNIT_TOLERANCE:g}); give unit vectors"
         )
     return w / norm[:, None]
 
 
-def _to_sample_set(path: Path, columns, data, rows) -> SampleSet:
-    _pick_layout(path, columns)
-    if len(data) == 0:
-        raise SampleListFormatError(f"{path}: no samples (the file has a header but no rows)")
-    _check_finite(path, columns, data, rows)
+def _checked_piece(path: Path, columns, data, rows, start: int) -> SampleSet:
+    """Rows ``start …`` of a sample list (``data``, ``(k, C)``), every value checked, as a
+    :class:`SampleSet` (errors name the row or line in the whole file)."""
+    _check_finite(path, columns, data, rows, start)
     cols = {name: data[:, c] for c, name in enumerate(columns)}
     mono = "value" in cols
     colour = MONO_COLUMNS * 3 if mono else RGB_COLUMNS
@@ -466,17 +505,18 @@ def _to_sample_set(path: Path, columns, data, rows) -> SampleSet:
     if (rgb < 0).any():
         i, c = np.argwhere(rgb < 0)[0]
         raise SampleListFormatError(
-            f"{_where(path, rows, i)}, column {colour[c]!r}: {rgb[i, c]:g} is negative; "
+            f"{_where(path, rows, start + i)}, column {colour[c]!r}: {rgb[i, c]:g} is negative; "
             f"a BRDF is ≥ 0 (clip noise to 0 or drop the row)"
         )
-    wi, wo = _directions(path, cols, rows, "i"), _directions(path, cols, rows, "o")
+    wi = _directions(path, cols, rows, "i", start)
+    wo = _directions(path, cols, rows, "o", start)
     valid = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    sigma = _sigma(path, cols, rows)
+    sigma = _sigma(path, cols, rows, start)
     return SampleSet(wi=wi, wo=wo, rgb=rgb, valid=valid, name=path.stem, path=str(path),
                      sigma=sigma, channels=1 if mono else 3)
 
 
-def _sigma(path, cols: dict, rows) -> np.ndarray | None:
+def _sigma(path, cols: dict, rows, start=0) -> np.ndarray | None:
     """``(N, 3)`` standard deviations from the ``sigma`` or ``sigma_r/g/b`` columns, checked
     positive; ``None`` without them."""
     group = _sigma_columns(path, set(cols))
@@ -487,7 +527,7 @@ def _sigma(path, cols: dict, rows) -> np.ndarray | None:
     if bad.any():
         i, c = np.argwhere(bad)[0]
         raise SampleListFormatError(
-            f"{_where(path, rows, i)}, column {group[min(c, len(group) - 1)]!r}: "
+            f"{_where(path, rows, start + i)}, column {group[min(c, len(group) - 1)]!r}: "
             f"{sigma[i, c]:g} is not a positive standard deviation; give sigma > 0"
         )
     return sigma
@@ -503,29 +543,105 @@ def _check_path(path) -> Path:
     return path
 
 
-def read_samples(path) -> SampleSet:
-    """Read a CSV or NPZ sample list (layout in the module docstring) into a :class:`SampleSet`.
-
-    Raises :class:`SampleListFormatError` for a missing file, a wrong suffix, wrong columns, and
-    any bad value, naming the path, line (CSV, 1-based as an editor shows it) or row (NPZ, 0-based
-    array index), and the column.
-    """
+def _pieces(path, rows: int):
+    """``(n, pieces)`` of the sample list at ``path``: its number of samples (its layout
+    checked, at least one sample), and a generator of its checked :class:`SampleSet` pieces of
+    at most ``rows`` samples with the row each starts at, ``(start, piece)``."""
     path = _check_path(path)
     if path.is_dir():
         raise SampleListFormatError(f"{path}: is a directory, expected a sample-list file")
     if not path.exists():
         raise SampleListFormatError(f"{path}: no such file")
-    try:
-        if path.suffix.lower() == ".csv":
-            columns, data, rows = _read_csv(path)
-        else:
-            (columns, data), rows = _read_npz(path), None
-    except UnicodeDecodeError as exc:
-        raise SampleListFormatError(f"{path}: not a text CSV file ({exc.reason})") from None
-    except NotRegularFileError as exc:
-        raise SampleListFormatError(str(exc)) from None
-    with np.errstate(all="ignore"):  # e.g. a 1e308 vector: its length overflows to inf and is
-        return _to_sample_set(path, columns, data, rows)  # refused by name, without a warning
+    csv = path.suffix.lower() == ".csv"
+    rows = max(1, int(rows))
+    source = _csv_pieces(path, rows) if csv else _npz_pieces(path, rows)
+    with _format_errors(path):
+        columns, n, _, _ = next(source)
+        _pick_layout(path, columns)
+    if n == 0:
+        source.close()
+        raise SampleListFormatError(f"{path}: no samples (the file has a header but no rows)")
+    lines = _LineNumbers(path, _header_line(path)) if csv else None
+
+    def pieces():
+        with _format_errors(path), np.errstate(all="ignore"):
+            # e.g. a 1e308 vector: its length overflows to inf and is refused by name, without
+            # a warning
+            for _, _, start, data in source:
+                yield start, _checked_piece(path, columns, data, lines, start)
+
+    return n, pieces()
+
+
+def _header_line(path) -> int:
+    with open_regular(path, "rb") as fh:
+        return _read_preamble(path, fh)[1]
+
+
+class _format_errors:
+    """Turn a reader's non-format failures into :class:`SampleListFormatError`."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        if isinstance(exc, UnicodeDecodeError):
+            raise SampleListFormatError(f"{self.path}: not a text CSV file ({exc.reason})") from None
+        if isinstance(exc, NotRegularFileError):
+            raise SampleListFormatError(str(exc)) from None
+        return False
+
+
+def sample_count_and_pieces(path, rows: int = PIECE_ROWS):
+    """``(n, pieces)``: the number of samples of the sample list at ``path`` (its layout
+    checked) and :func:`iter_samples` of it."""
+    n, pieces = _pieces(path, rows)
+    return n, (piece for _start, piece in pieces)
+
+
+def iter_samples(path, rows: int = PIECE_ROWS):
+    """The sample list at ``path`` as :class:`SampleSet` pieces of at most ``rows`` samples, in
+    file order, each checked as :func:`read_samples` checks the whole (the same errors, naming
+    the row or line in the file). Memory: one piece for an NPZ archive (its members are
+    decompressed side by side); for a CSV, the parsed columns (about the file's size) and one
+    piece. A consumer that needs only figures (``brdffit info``) never holds the whole list."""
+    _n, pieces = _pieces(path, rows)
+    for _start, piece in pieces:
+        yield piece
+
+
+def read_samples(path) -> SampleSet:
+    """Read a CSV or NPZ sample list (layout in the module docstring) into a :class:`SampleSet`.
+
+    Raises :class:`SampleListFormatError` for a missing file, a wrong suffix, wrong columns, and
+    any bad value, naming the path, line (CSV, 1-based as an editor shows it) or row (NPZ, 0-based
+    array index), and the column. The values are checked piece by piece
+    (:data:`PIECE_ROWS`) into the arrays of the result, so reading holds the result, one piece
+    and (for a CSV) the parsed columns.
+    """
+    path = Path(path)
+    n, pieces = _pieces(path, PIECE_ROWS)
+    out = None
+    for start, piece in pieces:
+        if out is None:
+            out = _empty_like(piece, n)
+        stop = start + len(piece)
+        for name in ("wi", "wo", "rgb", "valid", "sigma"):
+            part = getattr(piece, name)
+            if part is not None:
+                getattr(out, name)[start:stop] = part
+    return out
+
+
+def _empty_like(piece: SampleSet, n: int) -> SampleSet:
+    """An uninitialized :class:`SampleSet` of ``n`` samples shaped as ``piece``."""
+    sigma = None if piece.sigma is None else np.empty((n, 3))
+    return SampleSet(wi=np.empty((n, 3)), wo=np.empty((n, 3)), rgb=np.empty((n, 3)),
+                     valid=np.empty(n, bool), name=piece.name, path=piece.path, sigma=sigma,
+                     channels=piece.channels)
 
 
 def _columns_of(samples: SampleSet, angles: bool) -> tuple[tuple[str, ...], np.ndarray]:

@@ -4,13 +4,15 @@
 One module per command (``add_parser`` + ``run``); this module builds the parser and turns user
 mistakes into one line on stderr. Exit codes: 0 success; 1 a fit that did not converge (its
 results are still written, marked as such); 2 bad input or usage, including a usage error
-found by argparse, an output that cannot be written and running out of memory; 130 / 143
+found by argparse, an output that cannot be written and running out of memory (a
+``MemoryError``, or XLA's ``RESOURCE_EXHAUSTED`` on the host or an accelerator); 130 / 143
 interrupted by SIGINT / SIGTERM (see :mod:`brdffit.cli._signals`). ``--debug`` shows tracebacks.
 
 Standard output goes through :class:`_Stdout`: a reader that closes the pipe early
 (``brdffit models | head -1``) silences the rest of the output without an error, and any other
 failure to write it (``/dev/full``) is one line and exit code 2. NumPy's floating-point
-RuntimeWarnings never reach stderr: the readers and commands check values themselves.
+RuntimeWarnings never reach stderr: the readers and commands check values themselves; any
+other warning is one line, ``brdffit COMMAND: warning: ...``.
 
 The commands set float64 (``jax_enable_x64``) and the per-user persistent compilation cache
 (:mod:`brdffit.compilation_cache`) before any JAX work; the library itself never does.
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import atexit
+import functools
 import os
 import sys
 import traceback
@@ -189,6 +192,7 @@ def _main(argv, watcher) -> int:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # NumPy's overflow/invalid notes
+            warnings.showwarning = functools.partial(_warning_line, args.command)
             if getattr(args, "needs_jax", True):
                 _enable_x64()
             code = int(args.run(args) or 0)
@@ -197,11 +201,42 @@ def _main(argv, watcher) -> int:
     except _user_errors() as exc:
         return _fail(args, _one_line(exc))
     except MemoryError:
-        return _fail(args, "out of memory; the input is too large for this machine (see the "
-                     "input limits in README.md)")
+        return _fail(args, OUT_OF_MEMORY)
+    except Exception as exc:  # noqa: BLE001 (only an accelerator's or XLA's out-of-memory)
+        if not _out_of_memory(exc):
+            raise
+        return _fail(args, OUT_OF_MEMORY)
     except KeyboardInterrupt:  # in-process use without the signal watcher
         print(f"brdffit {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+#: The one line of an allocation that failed, in Python or in XLA (host or accelerator).
+OUT_OF_MEMORY = ("out of memory; the input is too large for this machine (see the input limits "
+                 "in README.md)")
+
+
+def _out_of_memory(exc: BaseException) -> bool:
+    """``exc``, or an exception it was raised from, is a failed allocation: a ``MemoryError``,
+    or XLA's status ``RESOURCE_EXHAUSTED`` (which JAX raises as a ``JaxRuntimeError``, or as
+    a ``ValueError`` from a transfer such as ``jax.device_put``), or XLA's ``INTERNAL: Error
+    dispatching computation: Out of memory allocating …`` (a program that ran out)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        text = str(exc).lstrip()
+        if (isinstance(exc, MemoryError) or text.startswith("RESOURCE_EXHAUSTED")
+                or "out of memory allocating" in text.lower()):
+            return True
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def _warning_line(command, message, category, filename, lineno, file=None, line=None):
+    """``warnings.showwarning`` of the commands: one line on stderr, without the source
+    location (a library warning, e.g. masked corrupt cells, is advice for the user)."""
+    text = " ".join(str(message).split())
+    print(f"brdffit {command}: warning: {text}", file=sys.stderr)
 
 
 def _command_parser(parser, command):

@@ -5,11 +5,14 @@ Selection happens in two stages, so that every table of one layout compiles once
 * **static** (depends on the directions and the options only, never on the measured values):
   cells with both directions above the horizon, within the angle ``cutoff``, and, if asked, a
   seeded ``subsample`` of a fixed size. This sets the array shapes.
-* **dynamic** (weights): the validity mask, non-finite values and negative values become zero
-  weights and zero targets. Masked cells cost compute but never change the shapes. A sample
-  list with measurement uncertainties (``SampleSet.sigma``) weights each residual by
-  ``1/σ`` carried through the loss's transform (:func:`sigma_weight`); a monochrome one
-  (``SampleSet.channels == 1``) gives channels 1 and 2 zero weight.
+* **dynamic** (weights): the validity mask and the screening of the values (:func:`screen`:
+  non-finite, negative, or above :data:`MAX_BRDF`, which no measurement gives) become zero
+  weights and zero targets; cells that are marked valid but fail the screening are counted by
+  reason and reported in one :class:`MaskedValuesWarning`. Masked cells cost compute but never
+  change the shapes. A sample list with measurement uncertainties (``SampleSet.sigma``)
+  weights each residual by ``1/σ`` carried through the loss's transform
+  (:func:`sigma_weight`); a monochrome one (``SampleSet.channels == 1``) gives channels 1 and
+  2 zero weight.
 * **the angle measure** (``weighting="angles"``, the default): each residual is multiplied by
   ``sqrt(w)``, ``w`` the share of the angle domain ``(θh, θd, φd)`` its sample stands for
   (``SampleSet.weight``, :func:`measure_weight`) scaled to mean 1 over the cells used, so that
@@ -23,12 +26,20 @@ Selection happens in two stages, so that every table of one layout compiles once
 
 Burley 2012 §3.1/§4.7: data past about 75–80° is extrapolated in the MERL set; ``cutoff=80``
 drops it. The default keeps everything (the caller decides).
+
+Memory: a fit holds about :data:`FIT_BYTES_PER_CELL` bytes per selected cell beyond its input
+(host gathers, the device arrays, the solver's buffers) and :data:`FIT_FIXED_BYTES` for the
+compiled programs. Before anything is gathered, :func:`check_memory` compares that estimate
+with what the process may still map (its address-space limit, ``ulimit -v``) and with the
+memory the system has available, and refuses with a :class:`~brdffit.errors.FitError` that
+says so: XLA cannot always report an allocation that fails (it may abort the process).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import warnings
 
 import equinox as eqx
 import jax
@@ -38,6 +49,11 @@ import numpy as np
 from ..config import check_fit_options
 from ..errors import ConfigError, FitError, UnknownNameError
 from .losses import Loss
+
+try:
+    import resource
+except ImportError:  # pragma: no cover - not on Windows: no address-space limit to check
+    resource = None
 
 #: Fewer usable cells than this (times the number of free parameters) is an error.
 MIN_CELLS_PER_PARAM = 3
@@ -128,6 +144,7 @@ class Selection:
     n_used: int  # of the selected rows, those with a valid value
     chunks: int  # number of equal blocks the (padded) rows split into
     host: tuple  # (wi, wo, rgb, good) of the selected rows, NumPy, ascending, unpadded
+    screened: tuple = ()  # (reason, count) of the valid selected rows masked by :func:`screen`
 
 
 def _static_rows(wi, wo, cutoff):
@@ -193,7 +210,10 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
     rgb = _gather(np.asarray(samples.rgb, float), rows, n, 0.0, "float64")
     good = np.zeros(n, bool)
     good[:k] = np.asarray(samples.valid, bool)[rows]
-    good &= np.all(np.isfinite(rgb) & (rgb >= 0), axis=1)
+    screened = screen(rgb, good)
+    if screened:
+        name = getattr(samples, "name", "")
+        warnings.warn(MaskedValuesWarning(screened_text(name, screened)), stacklevel=2)
     rgb[~good] = 0.0
     sw = loss.weight(rgb, wi[:, 2:3], wo[:, 2:3]) * good[:, None]
     if getattr(samples, "sigma", None) is not None:
@@ -217,7 +237,108 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
     data = FitData(dirs.wi_device, dirs.wo_device, rgb_d, target, sw_d)
     host = (wi[:k], wo[:k], rgb[:k], good[:k])
     return Selection(data, rows, len(samples.wi), dirs.n_usable, int(np.count_nonzero(good)),
-                     chunks, host)
+                     chunks, host, screened)
+
+
+#: The largest BRDF value (1/sr) taken as a measurement: larger values are masked as corrupt
+#: (:func:`screen`). The specular peaks of real materials reach about 10^4 (the realistic
+#: corpus, ``../shared/realistic``: 8.9e3 for alumina-oxide, 2.1e3 for aluminium, at most 8.9e3
+#: over its 80 materials); 10^7/sr would put all reflected light into 10^-7 sr, a cone of
+#: 0.01°, finer than any gonioreflectometer resolves. A flipped exponent bit of a stored value
+#: multiplies it by 2^64 or more (10^19), far past this bound.
+MAX_BRDF = 1e7
+
+
+class MaskedValuesWarning(UserWarning):
+    """Cells marked valid whose values cannot be measurements were masked (:func:`screen`)."""
+
+
+def screen(rgb: np.ndarray, good: np.ndarray) -> tuple[tuple[str, int], ...]:
+    """Clear ``good`` (in place) where a row of ``rgb`` holds a value that is not a measurement:
+    not finite, negative, or above :data:`MAX_BRDF`. Returns ``(reason, count)`` of the rows
+    that were ``good`` before and are not now, for each reason that masked any (a row counts
+    under the first reason it meets)."""
+    out = []
+    with np.errstate(invalid="ignore"):
+        for reason, bad in (("not finite", ~np.all(np.isfinite(rgb), axis=1)),
+                            ("negative", np.any(rgb < 0, axis=1)),
+                            (f"above {_power(MAX_BRDF)}/sr", np.any(rgb > MAX_BRDF, axis=1))):
+            hit = np.count_nonzero(bad & good)
+            if hit:
+                out.append((reason, int(hit)))
+                good &= ~bad
+    return tuple(out)
+
+
+def _power(x: float) -> str:
+    """``1e7`` for 1e7 (``format`` writes ``1e+07``)."""
+    mantissa, exponent = f"{x:.0e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
+
+
+def screened_text(name: str, screened) -> str:
+    """The sentence of a :class:`MaskedValuesWarning`."""
+    total = sum(count for _, count in screened)
+    why = ", ".join(f"{count:,} {reason}" for reason, count in screened)
+    return (f"table {name or '(unnamed)'}: masked {total:,} cell{'s' * (total != 1)} marked "
+            f"valid whose values cannot be measurements ({why}); the fit ignores "
+            f"{'it' if total == 1 else 'them'}. Check the data: it may be corrupt")
+
+
+#: Bytes a fit holds per selected cell beyond its input, on the CPU (the host gathers of
+#: :func:`select`, the device copies of the directions, values, targets and weights, the
+#: solver's per-pass buffers): measured 200 bytes (address space) and 181 (resident) for
+#: 2^22 cells of a ``ggx`` fit, and 7.3 GB of address space at the peak of a 2^24-cell fit
+#: that held 2.7 GB before it; a margin allowed.
+FIT_BYTES_PER_CELL = 256
+#: Bytes on an accelerator's host (the host gathers only; the device holds the rest).
+HOST_BYTES_PER_CELL = 112
+#: What a fit maps besides the cells (the compiled programs, XLA's buffers): measured 0.3 GB
+#: for small fits; a margin allowed.
+FIT_FIXED_BYTES = 768 << 20
+
+
+def _proc_kib(path: str, key: str) -> int | None:
+    """The ``key:`` line of a ``/proc`` status file in bytes (``None`` where there is none)."""
+    try:
+        with open(path) as fh:
+            for line in fh:
+                if line.startswith(key + ":"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def _gb(n: float) -> str:
+    return f"{n / 2**30:.1f} GiB"
+
+
+def check_memory(n_cells: int, name: str = "", backend: str | None = None) -> None:
+    """Raise :class:`FitError` when a fit of ``n_cells`` cells would need more memory than the
+    process may map (``RLIMIT_AS`` less what it maps now) or than the system has available
+    (``MemAvailable``), by the estimate in the module docstring."""
+    backend = jax.default_backend() if backend is None else backend
+    per_cell = FIT_BYTES_PER_CELL if backend == "cpu" else HOST_BYTES_PER_CELL
+    need = FIT_FIXED_BYTES + per_cell * int(n_cells)
+    limits = []
+    soft, _hard = (resource.getrlimit(resource.RLIMIT_AS) if resource is not None
+                   else (None, None))
+    mapped = _proc_kib("/proc/self/status", "VmSize")
+    if soft not in (None, getattr(resource, "RLIM_INFINITY", None)) and mapped is not None:
+        limits.append((soft - mapped, f"its address-space limit (ulimit -v, {_gb(soft)}) "
+                                      f"leaves {_gb(max(soft - mapped, 0))}"))
+    available = _proc_kib("/proc/meminfo", "MemAvailable")
+    if available is not None:
+        limits.append((available, f"the system has {_gb(available)} available"))
+    for room, what in limits:
+        if need > room:
+            raise FitError(
+                f"table {name or '(unnamed)'}: fitting {int(n_cells):,} cells needs about "
+                f"{_gb(need)} more memory ({per_cell} bytes a cell) and {what}; fit fewer "
+                f"cells (a `subsample`, a `cutoff`) or give the process more memory"
+            )
+
 
 
 @dataclasses.dataclass(frozen=True)
@@ -279,6 +400,7 @@ def _directions(samples, cutoff, sub: Subsample | None, seed: int, dtype: str) -
         rows = rows[sub.choose(theta_h, np.random.default_rng(seed))]
     chunks, pad = _blocks(len(rows))
     n = len(rows) + pad
+    check_memory(n, getattr(samples, "name", ""))
     # ascending rows: a sequential gather, 5x faster than gathering in the interleaved order
     up = (0.0, 0.0, 1.0)  # padding cells: normal incidence, zero weight
     wi_h, wo_h = _gather(wi, rows, n, up, "float64"), _gather(wo, rows, n, up, "float64")
@@ -371,7 +493,8 @@ def check_enough(selection: Selection, n_free: int, name: str = "") -> None:
     if selection.n_used < need:
         raise FitError(
             f"table {name or '(unnamed)'} has {selection.n_used} usable valid cells out of "
-            f"{selection.n_total} (above the horizon, within the cutoff, finite, non-negative); "
+            f"{selection.n_total} (above the horizon, within the cutoff, finite, non-negative, "
+            f"at most {_power(MAX_BRDF)}/sr); "
             f"fitting {n_free} free parameters needs at least {need}. Check the validity mask "
             f"and NaNs in the data, or relax `cutoff`/`subsample`."
         )
