@@ -24,13 +24,14 @@ through a real ``brdffit`` process. Then, each through the command or the API it
 * ``from_json``: ``FitResult.from_json`` on JSON text (plain, BOM, whitespace), paths, bytes and
   mutated text; a valid document that does not load, or an exception other than the format's
   own (``ValueError``/``JSONDecodeError``, a ``BrdffitError``; ``OSError`` only for a path that
-  is not there) = a **crash**.
+  is not there, ``TypeError`` only for bytes) = a **crash**.
 * ``corrupt_fit``: ``fit TABLE -m ggx --max-steps 40`` on a full MERL table with 15-141 flipped
   bits or NaN/inf/huge values in valid cells; a run past ``--fit-hang`` = a **hang**.
 * ``degenerate``: ``fit`` on zeros, a constant, a handful of cells, a perfect synthetic table, a
-  table times 1e30; ``success: true`` with NaN in the parameters or metrics, a free parameter
-  off its bounds without a standard error, or every free parameter on a bound = a
-  **false success** (NaN in a result counts even without success).
+  table times 1e30; ``success: true`` on the data that cannot determine the model (all but the
+  synthetic ones), or with NaN in the parameters or metrics, a free parameter off its bounds
+  without a standard error, or every free parameter on a bound = a **false success** (NaN in
+  a result counts even without success).
 * ``errorbar``: ``fit`` on constant tables; a finite standard error on a parameter that changes
   nothing in the model's values at the optimum = a **false success** (an error bar for nothing).
 * ``info_memory``: ``info`` on the largest legal NPZ sample list (7 deflated columns of 2^24
@@ -226,7 +227,8 @@ class Outcome:
         self.peak_mb, self.exc, self.timed_out = peak_mb, exc, timed_out
 
     def __str__(self):
-        return f"{' '.join(map(str, self.argv))[:160]}: exit {self.code}, stderr {self.err[-200:]!r}"
+        command = " ".join(map(str, self.argv))[:160]
+        return f"{command}: exit {self.code}, stderr {self.err[-200:]!r}"
 
 
 def run_in_process(argv, cwd: Path) -> Outcome:
@@ -658,6 +660,9 @@ def from_json(rng, n, ctx, counts):
             if must_load:
                 counts.note("crashes", f"kind {kind}: a valid result does not load: "
                             f"{type(exc).__name__}: {exc}")
+        except TypeError as exc:  # bytes are neither a path nor a string: a TypeError is fair
+            if kind != 4:
+                counts.note("crashes", f"kind {kind}: {type(exc).__name__}: {str(exc)[:120]}")
         except (FileNotFoundError, IsADirectoryError) as exc:
             if kind != 5:
                 counts.note("crashes", f"kind {kind}: {type(exc).__name__}: {str(exc)[:120]}")
@@ -749,6 +754,7 @@ def degenerate(rng, n, ctx, counts):
     folder = sandbox(ctx.tmp, "degenerate")
     for k in range(n):
         table, what = _degenerate_table(rng, k, ctx.fx, folder)
+        determined = what.startswith(("perfect", "synthetic"))  # the others cannot determine ggx
         out = folder / "r.json"
         out.unlink(missing_ok=True)
         o = run_in_process(["fit", table, "-m", "ggx", "--out", out, "-q"], folder)
@@ -771,6 +777,8 @@ def degenerate(rng, n, ctx, counts):
         problems = nan + [f"stderr.{u} null off the bounds" for u in unbounded] * d["success"]
         if d["success"] and all_bound:
             problems.append("every free parameter on a bound")
+        if d["success"] and not determined:
+            problems.append("success on data that cannot determine the model")
         if problems:
             counts.note("violations", f"false success ({what}): success={d['success']}, "
                         f"status {d.get('status')!r}: {problems}")

@@ -283,8 +283,8 @@ def fuzz_results(tmp_path_factory):
         out[model] = folder / f"{model}.json"
         res.to_json(out[model])
     out["multi"] = folder / "multi.json"
-    out["multi"].write_text(json.dumps({"results": [json.loads(out[m].read_text())
-                                                    for m in ("gltf-pbr", "mitsuba-roughconductor")]}))
+    both = [json.loads(out[m].read_text()) for m in ("gltf-pbr", "mitsuba-roughconductor")]
+    out["multi"].write_text(json.dumps({"results": both}))
     out["table"] = folder / "t.csv"
     return out
 
@@ -327,7 +327,8 @@ def test_exports_are_well_formed_whatever_the_table_name(fuzz_results, name, mod
                             tmp_path, monkeypatch)
         assert code == 0, err
         text = (tmp_path / "o").read_text()
-        shapes.append(_xml_shape(text) if target == "mitsuba-xml" else _json_shape(json.loads(text)))
+        xml = target == "mitsuba-xml"
+        shapes.append(_xml_shape(text) if xml else _json_shape(json.loads(text)))
     assert shapes[0] == shapes[1]  # no element, attribute or key more or less
 
 
@@ -371,8 +372,8 @@ def test_information_free_data_is_no_success(what, tmp_path):
     d = json.loads(res.to_json())
     assert not any(_nan_in(v) for v in d["params"].values())
     assert not any(_nan_in(v) for v in d["metrics"].values())
-    free = {f.split("[")[0] for f in d["free"]}
-    assert not (d["success"] and free and all(f in d["at_bound"] for f in free))
+    on_bound = [c in d["at_bound"] or c.split("[")[0] in d["at_bound"] for c in d["free"]]
+    assert not (d["success"] and all(on_bound))
     if what != "1e30":
         assert not d["success"] and d["status"] in ("degenerate", "not identified")
 
@@ -449,7 +450,8 @@ def test_batch_read_only_outdir_is_refused_before_any_fit(tmp_path):
     finally:
         (tmp_path / "ro").chmod(0o755)
     _one_line_refusal(r.returncode, r.stderr)
-    assert "ro" in r.stderr and ".brdffit-" not in r.stderr and ".parquet." not in r.stderr
+    assert re.search(r"(^|[\s'/])ro\b", r.stderr), r.stderr  # names OUTDIR ...
+    assert ".brdffit-" not in r.stderr and ".parquet." not in r.stderr  # ... not a temporary
     assert "fits:" not in r.stdout  # refused before the batch ran
 
 
@@ -467,7 +469,7 @@ def test_render_options_out_of_range_are_refused(fuzz_results, option, tmp_path,
                             "resource.setrlimit(resource.RLIMIT_AS, (8 << 30, 8 << 30)); "
                             "sys.argv = ['brdffit', *sys.argv[1:]]; "
                             f"runpy.run_path({str(ROOT / 'cli.py')!r}, run_name='__main__')",
-                            *argv], cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                            *argv], cwd=tmp_path, capture_output=True, text=True, timeout=60,
                            env={**os.environ, "PYTHONPATH": str(ROOT)})
         code, err = r.returncode, r.stderr
     else:
