@@ -30,8 +30,8 @@ through a real ``brdffit`` process. Then, each through the command or the API it
 * ``degenerate``: ``fit`` on zeros, a constant, a handful of cells, a perfect synthetic table, a
   table times 1e30; ``success: true`` on the data that cannot determine the model (all but the
   synthetic ones), or with NaN in the parameters or metrics, a free parameter off its bounds
-  without a standard error, or every free parameter on a bound = a **false success** (NaN in
-  a result counts even without success).
+  without a standard error, every free parameter on a bound, or ``rel_error`` ≥ 0.99 (the
+  model explains nothing) = a **false success** (NaN in a result counts even without success).
 * ``errorbar``: ``fit`` on constant tables; a finite standard error on a parameter that changes
   nothing in the model's values at the optimum = a **false success** (an error bar for nothing).
 * ``info_memory``: ``info`` on the largest legal NPZ sample list (7 deflated columns of 2^24
@@ -716,7 +716,7 @@ def _degenerate_table(rng, k, fx, folder) -> tuple[Path, str]:
     m = int(rng.integers(200, 600))
     angles = np.column_stack([rng.uniform(0, 85, m), rng.uniform(0, 360, m),
                               rng.uniform(0, 85, m), rng.uniform(0, 360, m)])
-    kind = k % 7
+    kind = k % 8
     if kind in (0, 1, 2):  # zeros, one constant, one constant per channel
         value = [0.0, float(rng.choice([1e-3, 0.05, 0.3, 2.0])), None][kind]
         rgb = (np.full((m, 3), value) if value is not None
@@ -730,13 +730,13 @@ def _degenerate_table(rng, k, fx, folder) -> tuple[Path, str]:
     elif kind == 5:  # a synthetic table times 1e30 (finite)
         data = np.loadtxt(fx.synth("ggx", samples=2000), delimiter=",", skiprows=1)
         angles, rgb, what = data[:, :4], data[:, 4:] * 1e30, "synthetic ggx x 1e30"
-    else:  # a full MERL table of zeros (every cell valid)
+    else:  # a full MERL table of zeros, or times 1e30 (finite)
         clean = fx.synth("ggx", ".binary", params=("alpha=0.2",)).read_bytes()
         body = np.frombuffer(clean, "<f8", offset=12).copy()
-        body[body > 0] = 0.0
-        path = folder / "zeros.binary"
+        body[body > 0] *= 0.0 if kind == 6 else 1e30
+        path = folder / "full.binary"
         path.write_bytes(clean[:12] + body.tobytes())
-        return path, "full MERL table of zeros"
+        return path, "full MERL table of zeros" if kind == 6 else "synthetic full MERL ggx x 1e30"
     path = folder / "t.csv"
     rows = np.column_stack([angles, rgb])
     path.write_text(header + "\n".join(",".join(repr(float(v)) for v in r) for r in rows) + "\n")
@@ -748,7 +748,7 @@ def _nan_in(value) -> bool:
         isinstance(value, list) and any(_nan_in(v) for v in value))
 
 
-@category("degenerate", 7)
+@category("degenerate", 8)
 def degenerate(rng, n, ctx, counts):
     """fits on data that cannot determine the model: never success with NaN or all on bounds."""
     folder = sandbox(ctx.tmp, "degenerate")
@@ -777,6 +777,8 @@ def degenerate(rng, n, ctx, counts):
         problems = nan + [f"stderr.{u} null off the bounds" for u in unbounded] * d["success"]
         if d["success"] and all_bound:
             problems.append("every free parameter on a bound")
+        if d["success"] and (d.get("metrics", {}).get("rel_error") or 0) >= 0.99:
+            problems.append(f"success with rel_error {d['metrics']['rel_error']:.3g}")
         if d["success"] and not determined:
             problems.append("success on data that cannot determine the model")
         if problems:
