@@ -1,6 +1,6 @@
 """Fuzz the command line and the API with hostile input, by hand, and count what went wrong.
 
-Run from the repository root (the default run: about 10 minutes on two cores)::
+Run from the repository root (the default run: about 12 minutes on two busy cores)::
 
     python benchmarks/fuzz_hostile.py [--only CAT,...] [--cases CAT=N,...] [--seed 0]
                                       [--hang 10] [--fit-hang 60] [--memory 1024]
