@@ -63,7 +63,8 @@ class Prepared:
 @dataclasses.dataclass(frozen=True)
 class Verdict:
     """``success`` and optimistix's vocabulary for it: ``status`` (a result name, or
-    ``nonfinite``, ``stalled``, ``degenerate``) and a ``message`` saying what to do."""
+    ``nonfinite``, ``stalled``, ``still``, ``degenerate``, ``implausible``) and a ``message``
+    saying what to do."""
 
     success: bool
     status: str
@@ -195,7 +196,9 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
         best.jtj, best.meat, best.dxdz, 2 * cost, float(best.m), bound == 0, s.covariance)
     if not best.finite:
         lost = np.zeros_like(lost)
-    v = data_verdict(prep.selection) or data_determined(verdict(best, s.ftol), bound, lost)
+    v = verdict(best, s.ftol)
+    if v.status != "degenerate":  # a cost that depends on nothing says it first
+        v = data_verdict(prep.selection) or data_determined(v, bound, lost)
     if throw and not v.success:
         failed = "did not converge" if v.status not in ("degenerate", "implausible") else (
             f"is {v.status}")
@@ -203,8 +206,9 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
     names = model.flat_names()
     message = v.message
     if best.finite and lost.any() and v.success:
-        message = ("not identified by the data (no standard error): "
-                   + ", ".join(names[free[i]] for i in np.flatnonzero(lost)))
+        message = "; ".join(filter(None, [message, (
+            "not identified by the data (no standard error): "
+            + ", ".join(names[free[i]] for i in np.flatnonzero(lost)))]))
     elif best.finite and not regular and not message:
         message = "JᵀJ is singular at the optimum: some parameters are not identified by the data"
     cov = np.zeros((len(x), len(x)))
