@@ -82,6 +82,18 @@ def test_a_switched_off_lobe_has_no_error_bar(cells):
     assert _strict_json(res)["stderr"]["alpha"] is None
 
 
+def test_a_handful_of_distinct_cells_is_degenerate():
+    """Two directions, each measured 15 times: six values for eight scalars. The solver
+    interpolates them exactly with two scalars on bounds ('converged', error bars of 1e-13)."""
+    wi = np.repeat([[0.17, 0.0, 0.985], [0.64, 0.0, 0.77]], 15, axis=0)
+    wo = np.repeat([[-0.34, 0.0, 0.94], [-0.64, 0.0, 0.77]], 15, axis=0)
+    rgb = np.repeat([[0.5, 0.4, 0.3], [2.5, 2.4, 2.3]], 15, axis=0)
+    res = brdffit.fit(SampleSet(wi, wo, rgb, np.ones(30, bool), name="two"), "ggx", throw=False)
+    assert not res.success and res.status == "degenerate", (res.status, res.message)
+    assert "only 2 distinct direction pairs, 6 values for 8 free parameters" in res.message
+    _assert_no_nan_values(res)
+
+
 def test_data_beyond_any_physical_scale_are_implausible(cells):
     """A table times 1e30 (finite) ended with every amplitude on its upper bound, rmse_log 66,
     ``success: true`` and no message."""

@@ -2,13 +2,14 @@
 covariance in physical units, and the figures of the fit.
 
 The verdict is a success only where the data determine the model (:func:`data_verdict`,
-:func:`_if_identified`): a fit on data that carry no information about a BRDF's shape (every
-cell the same value per channel: all zeros, a constant), on data beyond any physical
-reflectance (:data:`IMPLAUSIBLE`), or whose every free scalar ended on a bound or is not
-identified (:func:`.statistics.schur_deficient`), ends with ``success=False`` and the status
+:func:`data_determined`, :func:`_if_identified`): a fit on data that carry no information
+about a BRDF's shape (every cell the same value per channel: all zeros, a constant), on fewer
+distinct directions than the free scalars need, on data beyond any physical reflectance
+(:data:`IMPLAUSIBLE`), or where no free scalar off its bounds is identified
+(:func:`.statistics.schur_deficient`), ends with ``success=False`` and the status
 ``degenerate`` or ``implausible``, whatever the solver said. A free scalar the data do not
-identify gets no standard error (``NaN``, ``null`` in JSON) and is listed in
-``FitResult.not_identified``.
+identify gets no standard error (``NaN``; ``null`` in JSON) and is listed in
+``FitResult.not_identified``; the fit can still succeed (Disney's sheen on a metal).
 """
 
 from __future__ import annotations
@@ -123,40 +124,80 @@ def _if_identified(best: Solved, success: Verdict) -> Verdict:
     return success
 
 
-def data_verdict(selection: Selection) -> Verdict | None:
-    """A failed verdict for data that cannot determine any BRDF model, else ``None``:
+def distinct_directions(wi, wo, good, limit: int) -> int:
+    """The number of distinct ``(wi, wo)`` rows where ``good``, counted up to ``limit``
+    (``limit`` when there are at least that many)."""
+    head = _distinct(wi[:4096], wo[:4096], good[:4096], limit)
+    if head == limit:  # the usual case: a glance at the first rows suffices
+        return limit
+    return _distinct(wi, wo, good, limit)
 
-    * ``implausible``: ``ρ cos θo`` above :data:`IMPLAUSIBLE` in more than half of the cells;
+
+def _distinct(wi, wo, good, limit: int) -> int:
+    rows = np.concatenate([np.asarray(wi, float), np.asarray(wo, float)], axis=1)[good]
+    for n in range(limit):
+        if len(rows) == 0:
+            return n
+        rows = rows[np.any(rows != rows[0], axis=1)]
+    return limit
+
+
+def data_verdict(selection: Selection, n_free: int) -> Verdict | None:
+    """A failed verdict for data that cannot determine the model, else ``None``:
+
+    * ``degenerate``: fewer distinct directions ``(wi, wo)`` than ``n_free / 3`` (three values
+      a direction): repeated measurements of a handful of cells hold fewer numbers than the
+      free scalars to determine;
+    * ``implausible``: ``ρ cos θo`` above :data:`IMPLAUSIBLE` in more than half of the cells
+      (the median of an evenly spread subset of at most 65,536 cells);
     * ``degenerate``: every channel has one value in all the cells used (all zeros, a
       constant): no angular information, so no lobe of any model is determined.
     """
     wi, wo, rgb, good = selection.host
-    rgb = np.asarray(rgb, float)[np.asarray(good, bool)]
-    if len(rgb) == 0:
+    good = np.asarray(good, bool)
+    n = int(np.count_nonzero(good))
+    if n == 0:
         return None
-    projected = np.max(rgb, axis=1) * np.asarray(wo, float)[np.asarray(good, bool), 2]
+    need = -(-n_free // 3)
+    distinct = distinct_directions(wi, wo, good, need)
+    if distinct < need:
+        return Verdict(False, "degenerate", (
+            f"the {n} cells used hold only {distinct} distinct direction pairs, "
+            f"{3 * distinct} values for {n_free} free parameters: the data cannot determine "
+            f"the model; measure more directions or fix parameters."
+        ))
+    some = np.flatnonzero(good)[:: max(1, n // 65536)]
+    rgb_some = np.asarray(rgb[some], float)
+    projected = np.max(rgb_some, axis=1) * np.asarray(wo[some], float)[:, 2]
     median = float(np.median(projected))
     if median > IMPLAUSIBLE:
         return Verdict(False, "implausible", (
             f"the data are beyond any physical reflectance: ρ·cosθo is {median:.3g} or more in "
-            f"half of the {len(rgb)} cells used (a BRDF times cos θo integrates to at most 1 over "
+            f"half of the {n} cells used (a BRDF times cos θo integrates to at most 1 over "
             f"the hemisphere; above {IMPLAUSIBLE:g} half the cells would lie within 1e-6 sr); "
             f"check the data's units and scale."
         ))
-    top = np.max(np.abs(rgb))
-    if np.all(np.ptp(rgb, axis=0) <= 1e-12 * top):
-        what = "zero" if top == 0 else "the same value per channel"
+    if _flat(rgb_some, np.ones(len(some), bool)) and _flat(np.asarray(rgb, float), good):
+        what = "zero" if not np.any(rgb_some) else "the same value per channel"
         return Verdict(False, "degenerate", (
-            f"the data are {what} in all {len(rgb)} cells used: they carry no angular "
+            f"the data are {what} in all {n} cells used: they carry no angular "
             f"information and determine no lobe of a BRDF model; check the input."
         ))
     return None
 
 
+def _flat(rgb, good) -> bool:
+    """Every channel of ``rgb`` has one value (to 1e-12 of the largest) where ``good``."""
+    hi = np.max(rgb, axis=0, where=good[:, None], initial=-np.inf)
+    lo = np.min(rgb, axis=0, where=good[:, None], initial=np.inf)
+    return bool(np.all(hi - lo <= 1e-12 * np.max(np.abs([hi, lo]))))
+
+
 def data_determined(v: Verdict, bound: np.ndarray, lost: np.ndarray) -> Verdict:
-    """``v``, unless it is a success at which every free scalar is on a bound or not
-    identified: then the bounds, not the data, gave the answer (``degenerate``)."""
-    if v.success and len(bound) and np.all((bound != 0) | lost):
+    """``v``, unless it is a success at which some free scalar is not identified and every
+    other is on a bound: the data determine nothing inside the bounds (``degenerate``). All on
+    bounds, all identified, is an answer (a metal's diffuse albedo on 0, the rest fixed)."""
+    if v.success and lost.any() and np.all((bound != 0) | lost):
         return Verdict(False, "degenerate", (
             "every free parameter ended on a bound or is not identified by the data: the data "
             "determine none of them; check the data's scale and the `loss`."
@@ -198,7 +239,7 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
         lost = np.zeros_like(lost)
     v = verdict(best, s.ftol)
     if v.status != "degenerate":  # a cost that depends on nothing says it first
-        v = data_verdict(prep.selection) or data_determined(v, bound, lost)
+        v = data_verdict(prep.selection, len(free)) or data_determined(v, bound, lost)
     if throw and not v.success:
         failed = "did not converge" if v.status not in ("degenerate", "implausible") else (
             f"is {v.status}")
