@@ -45,8 +45,10 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             ``base`` event with its ``model``, ``cost``, ``steps`` and ``success``. Step events
             carry the cost of the cells of their stage. Each fit's events go to its own
             callback, also with fits running in several threads at once.
-        throw: raise :class:`~brdffit.errors.FitError` when the solver does not converge;
-            with ``False`` the result carries ``success=False`` and the solver's message.
+        throw: raise :class:`~brdffit.errors.FitError` when the solver does not converge or
+            the data do not determine the model (status ``degenerate`` or ``implausible``:
+            :mod:`.outcome`); with ``False`` the result carries ``success=False``, the status
+            and a message saying what to do.
         **kwargs: the options, each described with its default in
             :class:`~brdffit.fitting.options.Settings`: ``loss``, ``solver``, ``init``,
             ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,

@@ -89,8 +89,8 @@ class FitResult:
     Attributes:
         model_name: registry name of the fitted model.
         params: parameter name → value (float, or list for RGB), physical units.
-        stderr: same keys; standard errors (0 for fixed scalars, NaN for scalars at a bound or
-            when the Gauss–Newton matrix is singular).
+        stderr: same keys; standard errors (0 for fixed scalars; NaN, ``null`` in JSON, for
+            scalars at a bound and for those the data do not identify: no error bar).
         names: flat scalar names (``f0[0]`` ...), the order of ``x`` and ``cov``.
         x: flat parameter vector. cov: covariance over ``names`` (zero rows for fixed scalars).
         free, fixed: flat names of the fitted and of the frozen scalars.
@@ -98,9 +98,11 @@ class FitResult:
         cost: ``½ Σ r²`` of the chosen loss at the optimum (scipy's ``cost``).
         metrics: ``rmse`` (of the chosen residual), ``rmse_cosine``, ``rmse_log``,
             ``rel_error`` (mean ``|ρ̂-ρ|/max(ρ,1e-3)``), over the cells used.
-        success, status, message: the solver's verdict (``status`` is optimistix's result name,
+        success, status, message: the verdict (``status`` is optimistix's result name,
             ``"successful"`` on success by the optimality test, ``"still"`` on success by the
-            stillness test, :func:`brdffit.fitting.stages.still`).
+            stillness test, :func:`brdffit.fitting.stages.still`; ``"degenerate"`` when the data
+            determine nothing, ``"implausible"`` for data beyond any physical reflectance:
+            :mod:`brdffit.fitting.outcome`).
         steps: solver steps of the best start. starts: cost of each start (multi-start).
         loss, solver: what was used. n_cells: cells used; n_total: cells in the input.
         init: the starting parameters of the best start. wall_time: seconds for the whole call;
@@ -114,6 +116,9 @@ class FitResult:
             ``sha256``, ``name``), ``options`` (every fit option, defaults resolved),
             ``versions`` (brdffit, jax, jaxlib, optimistix, numpy, python) and ``date`` (UTC,
             ISO 8601). Written to JSON and read back by :meth:`from_json`.
+        not_identified: flat names of the free scalars off their bounds that the data do not
+            identify (:mod:`brdffit.fitting.statistics`): held at their values, no standard
+            error, zero rows in ``cov``.
     """
 
     model_name: str
@@ -143,6 +148,7 @@ class FitResult:
     covariance: str = "sandwich"
     optimality: float = float("nan")
     provenance: dict = dataclasses.field(default_factory=dict)
+    not_identified: list = dataclasses.field(default_factory=list)
 
     # -- evaluation -----------------------------------------------------------------------------
     @property
@@ -191,9 +197,12 @@ class FitResult:
             tag = " (fixed)" if n in self.fixed else ""
             if n in self.at_bound:
                 tag = f" (at {self.at_bound[n]} bound)"
+            if n in self.not_identified:
+                tag = " (not identified)"
             if n in (self.provenance.get("tied") or {}):
                 tag = f" (= {self.provenance['tied'][n]}, grey fit of monochrome data)"
-            err = f" ± {flat_se[n]:.3g}" if n in self.free and n not in self.at_bound else ""
+            has_error = n in self.free and n not in self.at_bound and n not in self.not_identified
+            err = f" ± {flat_se[n]:.3g}" if has_error else ""
             lines.append(f"  {n:>18} = {flat_x[n]:.6g}{err}{tag}")
         lines.append("  " + ", ".join(f"{k} {v:.4g}" for k, v in self.metrics.items()))
         lines.append(f"  cost {self.cost:.6g}, optimality {self.optimality:.2g}"
@@ -212,10 +221,10 @@ class FitResult:
 
     def rows(self) -> list[dict]:
         """One dict per flat scalar (``f0[0]`` ...): ``name``, ``value``, ``stderr`` (NaN for
-        fixed scalars and those at a bound), ``lower``/``upper`` (the bounds the fit used),
-        ``status`` (``free``, ``fixed``, ``at lower bound``, ``at upper bound``, or
-        ``= f0[0] (grey)`` for the copied components of a grey fit),
-        ``at_bound``."""
+        fixed scalars, those at a bound and those not identified), ``lower``/``upper`` (the
+        bounds the fit used), ``status`` (``free``, ``fixed``, ``at lower bound``, ``at upper
+        bound``, ``not identified``, or ``= f0[0] (grey)`` for the copied components of a grey
+        fit), ``at_bound``."""
         model = get_model(self.model_name)
         lo, hi = model.flat_bounds()
         user = self.provenance.get("options", {}).get("bounds") or {}
@@ -226,13 +235,15 @@ class FitResult:
         tied = self.provenance.get("tied") or {}
         out = []
         for i, n in enumerate(self.names):
-            fixed, bound = n in self.fixed, self.at_bound.get(n)
+            fixed, bound, lost = n in self.fixed, self.at_bound.get(n), n in self.not_identified
             status = "fixed" if fixed else (f"at {bound} bound" if bound else "free")
+            if lost and not fixed and not bound:
+                status = "not identified"
             if n in tied:  # a grey fit of monochrome data: a copy of component 0
                 status = f"= {tied[n]} (grey)"
             out.append({
                 "name": n, "value": float(np.asarray(self.x, float)[i]),
-                "stderr": float("nan") if fixed or bound else float(se[i]),
+                "stderr": float("nan") if fixed or bound or lost else float(se[i]),
                 "lower": float(lo[i]), "upper": float(hi[i]), "status": status,
                 "at_bound": bool(bound),
             })

@@ -21,6 +21,22 @@ coverage measured for both: ``docs/design/fitting.md``).
 Delta method: ``J_x = J_u (∂x/∂u)⁻¹``, so the bounds transform cancels and the covariance is in
 physical units. Scalars at a bound are held fixed (their ``∂x/∂u`` vanishes), as scipy's
 ``least_squares`` does with its active set.
+
+Identification (:func:`not_identified`): in the box coordinates ``z`` (:mod:`.transforms`) a
+scalar's whole range is one unit, so ``JᵀJ`` there compares the scalars on one scale. A free
+scalar off its bounds is **not identified** when
+
+* the curvature of the cost along it, with the other such scalars re-fitted (the Schur
+  complement :math:`H_{kk} - H_{k,o} H_{oo}^{+} H_{o,k}` of ``H = JᵀJ`` in ``z``), is at most
+  ``RANK_RTOL`` (:mod:`.normal_form`: the rank the solver itself resolves) of the largest
+  diagonal entry of ``H`` over all free scalars: the parameter does nothing the others cannot
+  do, e.g. a lobe's width when its amplitudes sit on zero, or two scalars that only enter as a
+  product; or
+* one standard error spans its whole range (:math:`\sigma_z \ge 1`): the data cannot place it
+  within its bounds.
+
+Such scalars get no standard error: they are held at their values, like those on a bound, and
+the covariance is that of the others.
 """
 
 from __future__ import annotations
@@ -30,6 +46,7 @@ import numpy as np
 
 from .data import FitData
 from .losses import RELATIVE_FLOOR
+from .normal_form import RANK_RTOL
 
 
 #: The length of :func:`cell_metric_sums`.
@@ -94,3 +111,52 @@ def covariance(jtj_u, meat_u, dxdu, sum_r2: float, m: float, keep: np.ndarray, k
     else:
         cov[np.ix_(k, k)] = inv @ meat @ inv * (m / max(m - len(k), 1.0))
     return cov, regular
+
+
+def schur_deficient(jtj_z, keep: np.ndarray) -> np.ndarray:
+    """Over the free scalars: those of ``keep`` whose Schur complement in ``JᵀJ`` (box
+    coordinates, against the other ``keep`` scalars) is at most ``RANK_RTOL`` of the largest
+    diagonal entry of ``JᵀJ`` (module docstring); all of ``keep`` when ``JᵀJ`` is zero."""
+    h = np.asarray(jtj_z, float)
+    keep = np.asarray(keep, bool)
+    out = np.zeros(len(keep), bool)
+    diag = np.diagonal(h)
+    ref = float(np.max(diag)) if diag.size else 0.0
+    k = np.flatnonzero(keep)
+    if not ref > 0 or not np.all(np.isfinite(h)):
+        out[k] = True
+        return out
+    hk = h[np.ix_(k, k)]
+    d = np.sqrt(np.clip(np.diagonal(hk), 0.0, None))
+    scale = np.where(d > 0, d, 1.0)
+    corr = hk / np.outer(scale, scale)
+    for j in range(len(k)):
+        o = np.arange(len(k)) != j
+        c = corr[o, j]
+        explained = c @ np.linalg.pinv(corr[np.ix_(o, o)], rcond=1e-12, hermitian=True) @ c
+        schur = hk[j, j] * max(1.0 - explained, 0.0) if o.any() else hk[j, j]
+        out[k[j]] = schur <= RANK_RTOL * ref
+    return out
+
+
+def beyond_range(cov_free, dxdz, keep: np.ndarray) -> np.ndarray:
+    """Over the free scalars: those of ``keep`` with a standard error of at least their whole
+    range, ``σ_x ≥ |∂x/∂z|`` (module docstring)."""
+    var = np.clip(np.diagonal(np.asarray(cov_free, float)), 0.0, None)
+    dxdz = np.abs(np.asarray(dxdz, float))
+    return np.asarray(keep, bool) & ~(var < dxdz**2)
+
+
+def identified_covariance(jtj_z, meat_z, dxdz, sum_r2: float, m: float, interior: np.ndarray,
+                          kind: str):
+    """``(cov, regular, lost)``: :func:`covariance` over the ``interior`` scalars that are
+    identified, and ``lost``, those that are not (module docstring)."""
+    lost = schur_deficient(jtj_z, interior)
+    for _ in range(len(lost) + 1):
+        keep = np.asarray(interior, bool) & ~lost
+        cov, regular = covariance(jtj_z, meat_z, dxdz, sum_r2, m, keep, kind)
+        wide = beyond_range(cov, dxdz, keep)
+        if not wide.any():
+            return cov, regular, lost
+        lost = lost | wide
+    return cov, regular, lost

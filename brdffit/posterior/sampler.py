@@ -208,7 +208,8 @@ def _assemble(result, post, sel, sampler, noise, run, timings):
         percentiles={n: [float(v) for v in pct[:, i]] for i, n in enumerate(names)},
         std={n: float(v) for n, v in zip(names, flat.std(axis=0, ddof=1))},
         x_ls=np.asarray(result.x, float),
-        stderr_ls={n: (float("nan") if n in result.at_bound else float(v))
+        stderr_ls={n: (float("nan") if n in result.at_bound or n in result.not_identified
+                       else float(v))
                    for n, v in zip(result.names, se) if n in result.free},
         samples=flat, chain=chain, log_prob=sampler.get_log_prob(), noise=noise,
         prior=post.prior.describe(), diagnostics=diag,
