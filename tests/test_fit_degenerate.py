@@ -1,13 +1,15 @@
 """Honest verdicts on degenerate data: success only where the optimality test holds at a
 point the data determine, never at a start the cost cannot tell from any other point."""
 
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import brdffit
-from brdffit.errors import ConfigError
+from brdffit.errors import ConfigError, FitError
 from data_formats import SampleSet
 
 import realistic
@@ -55,11 +57,18 @@ def test_lambertian_table_is_reproduced_by_ggx_with_f0_and_f90_at_zero(cells, lo
 
 
 def test_a_cost_that_depends_on_nothing_is_not_a_success(cells):
-    """Values of 1e300 under the relative loss: every residual is -1 whatever the parameters,
-    the gradient and JᵀJ vanish; the start is a 'stationary point' the data do not determine."""
-    res = brdffit.fit(_table(cells, 1e300, "huge"), "ggx", loss="relative", throw=False)
+    """Every reflecting term held at zero, α left free: the model is 0 whatever α, the
+    gradient and JᵀJ vanish; the start is a 'stationary point' the data do not determine."""
+    res = brdffit.fit(cells, "ggx", fixed={"f0": 0.0, "f90": 0.0, "diffuse": 0.0}, throw=False)
     assert not res.success and res.status == "degenerate"
     assert "determine nothing" in res.message
+    assert res.not_identified == ["alpha"] and math.isnan(res.stderr["alpha"])
+
+
+def test_a_table_beyond_any_measurable_value_is_refused(cells):
+    """Values of 1e300 (finite): not a few corrupt cells but a table at the wrong scale."""
+    with pytest.raises(FitError, match="units and scale"):
+        brdffit.fit(_table(cells, 1e300, "huge"), "ggx", loss="relative", throw=False)
 
 
 def test_an_all_zero_table_ends_on_the_bounds_it_belongs_on(cells):

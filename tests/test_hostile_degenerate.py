@@ -94,10 +94,20 @@ def test_a_handful_of_distinct_cells_is_degenerate():
     _assert_no_nan_values(res)
 
 
-def test_data_beyond_any_physical_scale_are_implausible(cells):
+def test_a_table_at_an_absurd_scale_is_refused(cells):
     """A table times 1e30 (finite) ended with every amplitude on its upper bound, rmse_log 66,
-    ``success: true`` and no message."""
+    ``success: true`` and no message. Every cell is above any measurable BRDF: the table is
+    refused before the fit, naming units and scale (not masked cell by cell)."""
     big = SampleSet(cells.wi, cells.wo, cells.rgb * 1e30, cells.valid, name="big")
+    with pytest.raises(FitError, match="beyond any physical reflectance.*units and scale"):
+        brdffit.fit(big, "ggx", throw=False)
+
+
+def test_data_beyond_any_physical_reflectance_are_implausible(cells):
+    """Values below the corrupt-cell bound (1e7/sr) but with ρ·cos θo above 1e6 in most cells:
+    no surface reflects that, the fit ends ``implausible`` with a message about units."""
+    rgb = np.clip(cells.rgb / np.median(cells.rgb[cells.valid]) * 5e6, 2e6, 9e6)
+    big = SampleSet(cells.wi, cells.wo, rgb, cells.valid, name="big")
     res = brdffit.fit(big, "ggx", throw=False)
     assert not res.success and res.status == "implausible"
     assert "units" in res.message and "beyond any physical reflectance" in res.message

@@ -259,6 +259,25 @@ def test_from_dict_keeps_reading_what_to_dict_writes(good):
     assert FitResult.from_dict(good.to_dict()).summary() == good.summary()
 
 
+def test_the_reader_checks_every_field_of_a_result():
+    """The JSON reader's table of fields is the dataclass's: a field added to ``FitResult``
+    without a check would be refused as an unknown key in every file that holds it."""
+    import dataclasses
+
+    from brdffit.fitting.result_json import FIELDS
+
+    assert list(FIELDS) == [f.name for f in dataclasses.fields(FitResult)]
+
+
+def test_parameters_not_identified_are_read_back(good):
+    d = good.to_dict()
+    d["not_identified"] = [d["free"][0]]
+    assert FitResult.from_dict(d).not_identified == [d["free"][0]]
+    d["not_identified"] = ["no-such-parameter"]
+    with pytest.raises(ResultFormatError, match="not_identified"):
+        FitResult.from_dict(d)
+
+
 # -- several-model result files ---------------------------------------------------------------
 @pytest.fixture(scope="module")
 def multi(tmp_path_factory):

@@ -8,7 +8,9 @@ Selection happens in two stages, so that every table of one layout compiles once
 * **dynamic** (weights): the validity mask and the screening of the values (:func:`screen`:
   non-finite, negative, or above :data:`MAX_BRDF`, which no measurement gives) become zero
   weights and zero targets; cells that are marked valid but fail the screening are counted by
-  reason and reported in one :class:`MaskedValuesWarning`. Masked cells cost compute but never
+  reason and reported in one :class:`MaskedValuesWarning`; when most valid cells are above
+  :data:`MAX_BRDF` the table is at the wrong scale, not corrupt in places, and
+  :func:`check_scale` refuses it. Masked cells cost compute but never
   change the shapes. A sample list with measurement uncertainties (``SampleSet.sigma``)
   weights each residual by ``1/σ`` carried through the loss's transform
   (:func:`sigma_weight`); a monochrome one (``SampleSet.channels == 1``) gives channels 1 and
@@ -210,9 +212,11 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
     rgb = _gather(np.asarray(samples.rgb, float), rows, n, 0.0, "float64")
     good = np.zeros(n, bool)
     good[:k] = np.asarray(samples.valid, bool)[rows]
+    n_valid = int(np.count_nonzero(good))
     screened = screen(rgb, good)
     if screened:
         name = getattr(samples, "name", "")
+        check_scale(name, screened, n_valid)
         warnings.warn(MaskedValuesWarning(screened_text(name, screened)), stacklevel=2)
     rgb[~good] = 0.0
     sw = loss.weight(rgb, wi[:, 2:3], wo[:, 2:3]) * good[:, None]
@@ -268,6 +272,19 @@ def screen(rgb: np.ndarray, good: np.ndarray) -> tuple[tuple[str, int], ...]:
                 out.append((reason, int(hit)))
                 good &= ~bad
     return tuple(out)
+
+
+def check_scale(name: str, screened, n_valid: int) -> None:
+    """Raise :class:`FitError` when most valid cells are above :data:`MAX_BRDF`: that is not a
+    few corrupt values but a table at the wrong scale (or in the wrong units), and no fit of it
+    means anything. ``screened``: what :func:`screen` returned; ``n_valid``: the valid selected
+    cells before the screening."""
+    above = sum(count for reason, count in screened if reason.startswith("above"))
+    if above and 2 * above > n_valid:
+        raise FitError(
+            f"table {name or '(unnamed)'}: {above:,} of its {n_valid:,} valid cells are above "
+            f"{_power(MAX_BRDF)}/sr, beyond any physical reflectance (f_r cos θ integrates to at "
+            f"most 1 over the hemisphere): check the data's units and scale")
 
 
 def _power(x: float) -> str:

@@ -225,7 +225,8 @@ def _provenance(v, where):
     return v
 
 
-#: Every field and its check, in :class:`FitResult`'s order.
+#: Every field and its check, in :class:`FitResult`'s order (a test holds the keys to the
+#: dataclass's fields, so a new field cannot be left unread).
 FIELDS = {
     "model_name": _text, "params": _mapping(_value), "stderr": _mapping(_value),
     "names": _names, "x": _reals, "cov": _matrix, "free": _names, "fixed": _names,
@@ -233,7 +234,7 @@ FIELDS = {
     "status": _text, "message": _text, "steps": _count, "starts": _reals, "loss": _text,
     "solver": _text, "n_cells": _count, "n_total": _count, "init": _mapping(_value),
     "wall_time": _real, "timings": _mapping(_real), "table": _text, "covariance": _text,
-    "optimality": _real, "provenance": _provenance,
+    "optimality": _real, "provenance": _provenance, "not_identified": _names,
 }
 #: Keys a result may carry beyond its fields (skipped).
 EXTRA = ("posterior",)
@@ -270,7 +271,9 @@ def _consistent(d) -> None:
     if flat is not None and d["names"] != flat:
         raise _Bad(f"'names' are not the {d['model_name']} model's {', '.join(flat)}")
     names = set(d["names"])
-    for key in ("free", "fixed", "at_bound"):
+    for key in ("free", "fixed", "at_bound", "not_identified"):
+        if key not in d:  # not_identified: absent from files older than the field
+            continue
         stray = [a for a in d[key] if a not in names]
         if stray:
             raise _Bad(f"{key!r} names {stray[0]!r}, which is not in 'names'")
