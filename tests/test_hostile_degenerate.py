@@ -153,3 +153,14 @@ def test_cli_zero_sample_list_exits_1_with_a_marked_result(tmp_path, capsys):
     d = json.loads(out.read_text(), parse_constant=lambda t: pytest.fail(f"{t} in the JSON"))
     assert d["success"] is False and d["status"] == "degenerate"
     assert all(v is not None for v in d["metrics"].values())
+    assert "warning: the fit is degenerate (" in captured.err  # not "did not converge"
+    assert "did not converge" not in captured.err
+
+
+def test_a_batch_row_names_the_verdict_and_the_parameters_not_identified(cells):
+    from brdffit.batch.table import OUTCOMES, result_row
+
+    res = brdffit.fit(cells, "ggx", fixed={"f0": 0.0, "f90": 0.0, "diffuse": 0.0}, throw=False)
+    row = result_row(res)
+    assert row["outcome"] == "degenerate" in OUTCOMES and row["not_identified"] == "alpha"
+    assert row["success"] is False

@@ -3,11 +3,14 @@
 Columns, in this order (:data:`BASE_COLUMNS`, then per-result columns in order of appearance):
 
 * ``material``, ``model``; ``success`` (the fit converged); ``outcome``: ``converged``,
-  ``not converged``, ``error`` (the job raised: a malformed file, a fit that could not start) or
-  ``worker died`` (the process running it was lost: out of memory, killed); ``message`` (the
-  solver's message, or the error); ``skipped`` (the row was read from an existing result).
+  ``not converged``, ``degenerate`` (the data cannot determine the model: zeros, a constant,
+  too few directions), ``implausible`` (the data are beyond any physical reflectance),
+  ``error`` (the job raised: a malformed file, a fit that could not start) or ``worker died``
+  (the process running it was lost: out of memory, killed); ``message`` (the solver's message,
+  or the error); ``skipped`` (the row was read from an existing result).
 * ``steps``, ``time`` (seconds of the fit itself), ``job_time`` (seconds of the whole job on its
-  worker: reading, fitting, writing), ``cost``, ``n_cells``, ``at_bound`` (``name=lower;...``).
+  worker: reading, fitting, writing), ``cost``, ``n_cells``, ``at_bound`` (``name=lower;...``),
+  ``not_identified`` (``name;...``: free parameters the data do not determine; no ``se_``).
 * ``input`` (the path, or ``<memory>``), ``checksum`` (``sha256:`` of the input),
   ``options`` (the key of the model and fit options, see :func:`brdffit.batch.jobs.options_key`),
   ``brdffit_version``, ``worker``, ``result`` (the JSON result's path, relative to the outdir).
@@ -24,10 +27,12 @@ import numpy as np
 
 BASE_COLUMNS = (
     "material", "model", "success", "outcome", "message", "skipped", "steps", "time", "job_time",
-    "cost", "n_cells", "at_bound", "input", "checksum", "options", "brdffit_version", "worker",
+    "cost", "n_cells", "at_bound", "not_identified", "input", "checksum", "options", "brdffit_version", "worker",
     "result",
 )
-OUTCOMES = ("converged", "not converged", "error", "worker died")
+OUTCOMES = ("converged", "not converged", "degenerate", "implausible", "error", "worker died")
+#: Fit statuses that are their own outcome (every other failed fit is ``not converged``).
+_VERDICTS = ("degenerate", "implausible")
 #: The metric that ranks models of one material in the summary (the fitted loss's RMS residual).
 RANK_BY = "rmse"
 
@@ -47,13 +52,15 @@ def result_row(result) -> dict:
     """The columns a :class:`~brdffit.FitResult` fills (everything but the job's own)."""
     row = {
         "success": bool(result.success),
-        "outcome": "converged" if result.success else "not converged",
+        "outcome": ("converged" if result.success else result.status
+                    if result.status in _VERDICTS else "not converged"),
         "message": str(result.message or ""),
         "steps": int(result.steps),
         "time": float(result.wall_time),
         "cost": float(result.cost),
         "n_cells": int(result.n_cells),
         "at_bound": ";".join(f"{k}={v}" for k, v in sorted(result.at_bound.items())),
+        "not_identified": ";".join(result.not_identified),
     }
     row.update({k: float(v) for k, v in result.metrics.items()})
     row.update(_flat("p_", result.params))

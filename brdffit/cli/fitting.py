@@ -236,8 +236,10 @@ def run(args) -> int:
         sys.stdout.flush()  # a failed stdout publishes nothing
         outputs.publish()
     if not result.success:
-        print(f"brdffit fit: warning: the fit did not converge ({result.message}); outputs "
-              f"were written and marked success=false", file=sys.stderr)
+        what = (f"the fit is {result.status}" if result.status in ("degenerate", "implausible")
+                else "the fit did not converge")
+        print(f"brdffit fit: warning: {what} ({result.message}); outputs were written and "
+              f"marked success=false", file=sys.stderr)
         return 1
     return 0
 
