@@ -310,6 +310,21 @@ def test_local_cluster_refuses_other_clients_and_serves_no_http(tmp_path):
         comms |= {parse_host_port(w["nanny"])[1] for w in info["workers"].values()}
         pids = [os.getpid(), *client.run(os.getpid).values()]
         assert set().union(*map(_listening, pids)) - before <= comms
+        # No node ever opened an HTTP server (not even one closed later): none has a
+        # "dashboard" service, which Dask records as soon as it listens.
+        assert "dashboard" not in info["services"]
+        assert all("dashboard" not in w.get("services", {}) for w in info["workers"].values())
+        assert client.run(lambda dask_worker: dask_worker.http_server) == {
+            a: None for a in info["workers"]}
+
+
+def test_a_dashboard_is_served_only_when_asked_for():
+    import urllib.request
+
+    with runner.open_client(workers=1, dashboard="127.0.0.1:0") as (client, _):
+        port = client.scheduler_info()["services"]["dashboard"]
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/health", timeout=10) as r:
+            assert r.status == 200 and r.read() == b"ok"
 
 
 SIGNAL_EXIT = """

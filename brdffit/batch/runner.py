@@ -18,8 +18,8 @@ the same :func:`run_batch`. Where jobs run:
   speaks TLS with credentials made for this batch alone (``Security.temporary()``: a key and
   certificate that exist only in this process and its workers), so a connection without them
   (any other process, another user) is refused before it can submit anything. No HTTP server
-  runs (the dashboard and metrics routes are off, and the listeners Dask opens anyway are
-  closed before any job), unless ``dashboard`` names an address for the scheduler's.
+  runs: its scheduler and workers open no HTTP listener at all (:mod:`brdffit.batch.nohttp`),
+  unless ``dashboard`` names an address for the scheduler's dashboard.
 
 Worker processes live for the whole batch, so each compiles a model's programs once per table
 layout and reuses them for every later job; the persistent compilation cache
@@ -55,8 +55,6 @@ WORKER_MEMORY = 2 * 2**30
 CONNECT_TIMEOUT = "20s"
 
 
-#: Settings of a local cluster without a dashboard: no HTTP routes on the scheduler or workers.
-NO_HTTP = {"distributed.scheduler.http.routes": [], "distributed.worker.http.routes": []}
 #: The schemes a scheduler address may have (``tls`` takes its credentials from Dask's
 #: configuration, ``distributed.comm.tls``).
 SCHEDULER_SCHEMES = ("tcp", "tls")
@@ -149,36 +147,29 @@ def open_client(client=None, *, workers: int | None = None, scheduler: str | Non
 def _local_cluster(n: int, dashboard: str | None):
     """A client of a new local cluster of ``n`` pinned worker processes (module docstring)."""
     import dask
-    from distributed import Client, LocalCluster
+    from distributed import Client
     from distributed.security import Security
 
     from . import nohttp, pinning
 
     security = Security.temporary()
-    settings = {**LOCAL_SCHEDULER, **({} if dashboard else NO_HTTP)}
-    with dask.config.set(settings):
+    with dask.config.set(LOCAL_SCHEDULER):
         # Started without workers, so that a signal during their start finds the cluster
         # (close_local_clusters); the workers are added below.
-        cluster = LocalCluster(n_workers=0, threads_per_worker=1, processes=True,
-                               host="127.0.0.1", protocol="tls://", security=security,
-                               dashboard_address=dashboard or None,
-                               # Without a dashboard, Dask's HTTP listener gets a free loopback
-                               # port (not 8787) and is closed below.
-                               scheduler_kwargs=None if dashboard else {
-                                   "dashboard": False, "dashboard_address": "127.0.0.1:0"},
-                               silence_logs=logging.ERROR, env={"MPLBACKEND": "Agg"})
+        cluster = nohttp.QuietCluster(n_workers=0, threads_per_worker=1, processes=True,
+                                      host="127.0.0.1", protocol="tls://", security=security,
+                                      dashboard=bool(dashboard), dashboard_address=dashboard,
+                                      silence_logs=logging.ERROR, env={"MPLBACKEND": "Agg"})
     _LIVE_CLUSTERS.add(cluster)
     try:
         with cluster, Client(cluster, security=security) as c:
-            if not dashboard:
-                nohttp.stop_http(cluster.scheduler)
-            c.register_plugin(nohttp.NoHttp())
             groups = pinning.core_groups(n)
             if n > 1 and groups:
                 c.register_plugin(pinning.PinCores(groups))
-            with dask.config.set(settings):  # the nannies take the settings as they start
+            with dask.config.set(LOCAL_SCHEDULER):  # the nannies take the settings as they start
                 for _ in range(n):  # what scale(n) does, but waiting and raising as
-                    cluster.worker_spec.update(cluster.new_worker_spec())  # LocalCluster(n)
+                    cluster.worker_spec.update(nohttp.quiet_workers(  # LocalCluster(n)
+                        cluster.new_worker_spec()))
                 cluster.sync(cluster._correct_state)
             yield c, f"{n} local worker{'s' * (n != 1)}"
     finally:
