@@ -250,22 +250,53 @@ def run_in_process(argv, cwd: Path) -> Outcome:
     return Outcome(argv, code, out.getvalue(), err.getvalue(), time.perf_counter() - t0, exc=exc)
 
 
+#: Runs a command and writes its peak RSS (KiB) to a file: ``python -c PEAK OUT LIMIT CMD...``.
+#: A child's ``ru_maxrss`` counts the resident size of the process it was forked from (Linux
+#: keeps the old address space's high-water mark across ``exec``), so the command is started by
+#: this small process, not by the fuzzer (or pytest), whose own size would be counted.
+#: ``LIMIT`` (bytes, 0 for none) is the command's address-space limit; the exit status (a
+#: death by a signal included) is the command's.
+PEAK = r"""
+import os, resource, signal, subprocess, sys
+out, limit, *cmd = sys.argv[1:]
+if int(limit):
+    resource.setrlimit(resource.RLIMIT_AS, (int(limit), int(limit)))
+p = subprocess.Popen(cmd)
+while True:
+    try:
+        _, status, usage = os.wait4(p.pid, 0)
+        break
+    except InterruptedError:
+        continue
+with open(out, "w") as fh:
+    fh.write(str(usage.ru_maxrss))
+code = os.waitstatus_to_exitcode(status)
+if code < 0:
+    signal.signal(-code, signal.SIG_DFL)
+    os.kill(os.getpid(), -code)
+sys.exit(code)
+"""
+
+
+def peak_command(cmd, peak_file, address_space: int | None = None) -> list:
+    """``cmd`` started through :data:`PEAK`, which writes its peak RSS to ``peak_file``."""
+    return [sys.executable, "-c", PEAK, str(peak_file), str(address_space or 0), *map(str, cmd)]
+
+
 def run_process(argv, cwd: Path, timeout: float, *, address_space: int | None = None,
                 prefix=(), env=None, on_start=None) -> Outcome:
-    """A real ``brdffit`` process (``cli.py``) in its own session; its peak RSS from ``wait4``
-    (the largest of it and its waited-for children); killed with its group past ``timeout``.
+    """A real ``brdffit`` process (``cli.py``) in its own session, started through
+    :data:`PEAK` (its peak RSS, not the fuzzer's); killed with its group past ``timeout``.
     ``on_start(popen)`` runs while it runs (and may take time)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), **(env or {})}
 
-    def limit():
-        if address_space:
-            resource.setrlimit(resource.RLIMIT_AS, (address_space, address_space))
-
-    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err, \
+            tempfile.NamedTemporaryFile("r") as peak:
         t0 = time.perf_counter()
-        p = subprocess.Popen([*prefix, sys.executable, str(ROOT / "cli.py"), *map(str, argv)],
-                             cwd=cwd, env=env, stdout=out, stderr=err, stdin=subprocess.DEVNULL,
-                             start_new_session=True, preexec_fn=limit)
+        cmd = peak_command([sys.executable, str(ROOT / "cli.py"), *argv], peak.name,
+                           address_space)
+        p = subprocess.Popen([*prefix, *cmd], cwd=cwd, env=env, stdout=out, stderr=err,
+                             stdin=subprocess.DEVNULL, start_new_session=True)
         if on_start is not None:
             on_start(p)
         timed_out, status, usage = False, None, None
@@ -287,8 +318,10 @@ def run_process(argv, cwd: Path, timeout: float, *, address_space: int | None = 
         out.seek(0)
         err.seek(0)
         code = None if timed_out else p.returncode
-        return Outcome(argv, code, out.read(), err.read(), dt, usage.ru_maxrss / 1024,
-                       timed_out=timed_out)
+        peak.seek(0)
+        text = peak.read().strip()
+        rss = int(text) if text else usage.ru_maxrss
+        return Outcome(argv, code, out.read(), err.read(), dt, rss / 1024, timed_out=timed_out)
 
 
 def judge(o: Outcome, counts: Counts, *, allowed=(0, 2), hang: float, memory: float | None = None,
