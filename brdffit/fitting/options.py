@@ -119,7 +119,12 @@ class Settings:
         seed: for the subsample and the multi-start perturbations.
         multistart: number of extra perturbed starts; the lowest cost wins.
         max_steps: the step limit; reaching it is a failure (``success=False``), never the
-            normal way out.
+            normal way out. It bounds every solve of the fit, so a whole fit takes at most
+            ``(1 + multistart) × (3 scan candidates + warm + full) × max_steps`` steps (twice
+            that for a model fitted from another model's optimum), each one pass over at most
+            the selected cells: its time is bounded by the step limit and the cell count,
+            whatever the values (values that are no measurement are masked before the fit,
+            :func:`brdffit.fitting.data.screen`).
         rtol, atol: optimistix's Cauchy test on the accepted step (defaults 1e-14 in float64,
             1e-6 in float32: near rounding, so that it ends only a solve that no longer moves,
             reported as stalled unless the optimality test holds too).
