@@ -119,6 +119,10 @@ def main(argv=None) -> int:
     parser.add_argument("command", nargs=argparse.REMAINDER,
                         help=f"the brdffit command after `--` (default: {DEFAULT})")
     opts = parser.parse_args(argv)
+    # children inherit an ignored SIGINT (a shell's background job has one): start them with
+    # the default dispositions, as from a terminal
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     command = [c for c in opts.command if c != "--"] or shlex.split(DEFAULT)
     signum = getattr(signal, f"SIG{opts.signal}")
     work = Path(tempfile.mkdtemp(prefix="brdffit-signal-trials-"))

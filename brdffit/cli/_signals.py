@@ -28,7 +28,8 @@ thread is doing. Then, in this order:
    ``os._exit(128 + signum)``: no interpreter teardown under running XLA threads, hence no
    segfault.
 
-So a signal gives one of two outcomes, never a mix: the outputs published and the command's
+A signal that is ignored when the command starts (``nohup``, a shell's background job) stays
+ignored. So a signal gives one of two outcomes, never a mix: the outputs published and the command's
 own exit status, or nothing published and exit status 130 (``SIGINT``) / 143 (``SIGTERM``).
 """
 
@@ -82,7 +83,8 @@ class SignalExit:
         self._read, self._write = os.pipe()
         os.set_blocking(self._write, False)
         self._old_fd = signal.set_wakeup_fd(self._write, warn_on_full_buffer=False)
-        self._saved = {s: signal.signal(s, _noop) for s in _NAMES}
+        self._saved = {s: signal.signal(s, _noop) for s in _NAMES
+                       if signal.getsignal(s) is not signal.SIG_IGN}  # nohup, a background job
         self._thread = threading.Thread(target=self._watch, name="brdffit-signals", daemon=True)
         self._thread.start()
         return self
