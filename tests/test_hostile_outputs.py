@@ -290,3 +290,11 @@ def test_the_render_library_refuses_them_too(options):
 
     with pytest.raises(ConfigError):
         sphere_scene({"type": "diffuse"}, **options)
+
+
+@pytest.mark.parametrize("noise", ["1e300", "11", "inf"])
+def test_synth_noise_has_an_upper_bound(capsys, tmp_path, noise):
+    """Before: ``--noise 1e300`` wrote a table of values near 1e299, exit 0."""
+    code = main(["synth", "--model", "ggx", "--noise", noise, "-o", str(tmp_path / "n.binary")])
+    _one_line_error(capsys, code, "--noise", "must be a finite number in [0, 10]")
+    assert _leftovers(tmp_path) == []
