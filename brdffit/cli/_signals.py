@@ -28,9 +28,10 @@ thread is doing. Then, in this order:
    ``os._exit(128 + signum)``: no interpreter teardown under running XLA threads, hence no
    segfault.
 
-A signal that is ignored when the command starts (``nohup``, a shell's background job) stays
-ignored. So a signal gives one of two outcomes, never a mix: the outputs published and the command's
+So a signal gives one of two outcomes, never a mix: the outputs published and the command's
 own exit status, or nothing published and exit status 130 (``SIGINT``) / 143 (``SIGTERM``).
+A signal that is ignored when the command starts (``nohup``, a shell's background job) stays
+ignored.
 """
 
 from __future__ import annotations

@@ -25,8 +25,8 @@ def add_parser(sub, parents) -> None:
                    help="a parameter value, e.g. alpha=0.1 or f0=0.9,0.6,0.3 (one number fills "
                    "all three channels); repeatable; others take the model's defaults")
     p.add_argument("--noise", type=float, default=0.0, metavar="SIGMA",
-                   help="multiplicative Gaussian noise, relative std. dev. in [0, 10] (0.02 = 2%%); "
-                   "negative results are clipped to 0")
+                   help="multiplicative Gaussian noise, relative std. dev. in [0, 10] "
+                   "(0.02 = 2%%); negative results are clipped to 0")
     p.add_argument("--seed", type=int, default=0, help="random seed for noise and samples")
     p.add_argument("--samples", type=int, default=100_000, metavar="N",
                    help="number of random direction pairs for a .csv/.npz output (default 100000)")
