@@ -140,7 +140,7 @@ def main(argv=None) -> int:
                      f"(exit {ref['status']}): {ref['stderr'].strip()[-500:]}")
         expected, durations = set(ref["files"]), [ref["seconds"]]
         print(f"command: brdffit {shlex.join(args)}")
-        print(f"without a signal: exit {ref['status']} in {period:.1f} s, "
+        print(f"without a signal: exit {ref['status']} in {ref['seconds']:.1f} s, "
               f"{len(expected)} files: {', '.join(sorted(expected))}")
         period = ref["seconds"]
         rng = np.random.default_rng(opts.seed)
