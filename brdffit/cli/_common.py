@@ -8,10 +8,8 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from pathlib import Path
-
-from data_formats._atomic import atomic_path
 
 from ..errors import BrdffitError
 
@@ -39,6 +37,16 @@ def parse_value(text: str, where: str):
     if len(values) == 3:
         return tuple(values)
     raise UsageError(f"{where}: {text!r} has {len(values)} values; give one number or three (r,g,b)")
+
+
+def number(text: str) -> int | float:
+    """An ``argparse`` type for a numeric option: ``"1e8"`` → ``100000000`` (an ``int`` when the
+    value is whole), ``"0.1"``, ``"nan"``, ``"inf"`` → a ``float``. It accepts every number so
+    that the option's range check names the range in its message."""
+    value = float(text)
+    if math.isfinite(value) and value == int(value) and abs(value) < 2**63:
+        return int(value)
+    return value
 
 
 def parse_assignments(items: Iterable[str] | None, flag: str) -> dict:
@@ -106,25 +114,22 @@ def is_table(data) -> bool:
 
 # -- outputs ----------------------------------------------------------------------------------
 def check_outputs(paths: Iterable[str | None], force: bool, sizes: dict | None = None):
-    """The :class:`~brdffit.cli._outputs.OutputSet` of ``paths``, checked before any work."""
+    """The :class:`~brdffit.cli._outputs.OutputSet` of ``paths``, checked before any work.
+
+    Use it as a context manager (``with check_outputs(...) as outputs:``): its staging folders
+    exist only inside the block, files are written with ``outputs.write`` and appear with
+    ``outputs.publish()``; leaving the block removes whatever was not published.
+    """
     from ._outputs import OutputSet
 
     return OutputSet(paths, force, sizes)
 
 
-def atomic_write(path, write: Callable[[Path], None]) -> Path:
-    """Call ``write(tmp)`` on a temporary file in ``path``'s folder, then rename it to ``path``.
-
-    The temporary name keeps the suffix (writers such as matplotlib pick the format by it). On
-    any failure the temporary file is removed, so no partial output is ever left.
-    """
-    with atomic_path(path) as tmp:
-        write(tmp)
-    return Path(path)
-
-
 def write_text(path, text: str) -> Path:
-    return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    """Write ``text`` (UTF-8) to ``path``: a staged path of an output set, which is private
+    until published, so no temporary of its own is needed."""
+    Path(path).write_text(text, encoding="utf-8")
+    return Path(path)
 
 
 # -- progress ---------------------------------------------------------------------------------

@@ -1,24 +1,38 @@
 """A command's output files as one set: checked before the work, published together or not at all.
 
-Contract of :class:`OutputSet` (what ``fit``, ``plot``, ``synth`` and ``demo`` rely on):
+:class:`OutputSet` is the one staging mechanism of the command line: a context manager that
+owns its staging folders, so that they exist only inside its ``with`` block. Contract (what
+``fit``, ``plot``, ``synth``, ``demo``, ``export`` and ``render`` rely on):
 
-* **Before any work** (``OutputSet(paths, force)``): every output must have an existing folder,
-  must not be a folder, must not exist unless ``force``, and must never be anything but a
-  regular file (a device such as ``/dev/full``, a FIFO or a symlink is never replaced, even
-  with ``force``). In each destination folder a private staging folder
-  (``.brdffit-XXXXXXXX``) is created: that proves the folder is writable (``EROFS``,
-  ``EACCES`` are reported now, not after a long fit), and the free space and the file-size
-  limit (``RLIMIT_FSIZE``) are compared with the expected sizes.
-* **Writing** goes to :meth:`OutputSet.staged` paths inside the staging folders; a failed
+* **Before any work** (``OutputSet(paths, force)``, nothing created yet): every output must
+  have an existing folder, must not be a folder, must not exist unless ``force``, and must
+  never be anything but a regular file (a device such as ``/dev/full``, a FIFO or a symlink is
+  never replaced, even with ``force``). Each destination folder is proved writable (a private
+  folder is made there and removed at once: ``EROFS``, ``EACCES`` are reported now, not after
+  a long fit), and the free space and the file-size limit (``RLIMIT_FSIZE``) are compared
+  with the expected sizes.
+* **Entering** the ``with`` block creates, in each destination folder, a private staging
+  folder (``.brdffit-XXXXXXXX``); **leaving** it, however (return, exception), removes them and
+  every temporary in them. Staged paths exist only inside the block.
+* **Writing** goes to :meth:`OutputSet.staged` paths inside the staging folders, through
+  :meth:`OutputSet.write`, a write in flight (:func:`data_formats._atomic.writing`); a failed
   write (``ENOSPC``, ``EFBIG``, ...) raises :class:`OutputError` and nothing is published.
 * **Publishing** (:meth:`OutputSet.publish`) moves every staged file into place. Without
   ``force`` each file is hard-linked to its name (``link`` fails if the name exists), so "no
   overwrite without ``--force``" holds at the moment of publishing even when another process
   created the file during the fit; if any link fails, the files already linked by this set
   are removed again, so the set appears whole or not at all. With ``force`` existing regular
-  files are replaced by ``rename`` (keeping their mode), one after the other.
-* **Always** (:meth:`OutputSet.discard`, also on ``SIGINT``/``SIGTERM`` through
-  :mod:`brdffit.cli._signals`): the staging folders and every temporary in them are removed.
+  files are replaced by ``rename`` (keeping their mode), one after the other. A command
+  publishes one set, as its last piece of work: publishing is its point of no return (see
+  *Signals*).
+* **Signals** (``SIGINT``/``SIGTERM``, :mod:`brdffit.cli._signals`): the watcher lets no new
+  write start, waits for the writes in flight to finish, then, under :data:`LOCK` (which
+  :meth:`~OutputSet.publish` holds while it publishes), either finds that a set has been
+  published, and lets the command finish with its own exit status (the signal is ignored), or
+  aborts every live set (staging folders removed; a later ``publish`` is refused) and ends the
+  process with 130 / 143. So the outputs are published and the exit status is the command's
+  (0; 1 for a fit that did not converge), or nothing is published and the status is 130 / 143:
+  never both.
 """
 
 from __future__ import annotations
@@ -34,17 +48,21 @@ import threading
 from collections.abc import Iterable
 from pathlib import Path
 
+from data_formats._atomic import writing
+
 from ..errors import BrdffitError
 
-__all__ = ["OutputError", "OutputSet", "LOCK", "live_sets"]
+__all__ = ["OutputError", "OutputSet", "LOCK", "live_sets", "published_count", "remove_tree"]
 
 #: Held while a set publishes or is discarded; the signal watcher takes it before cleaning up.
 LOCK = threading.RLock()
 _LIVE: set = set()
+_PUBLISHED = [0]  # sets published in this process (the signal watcher compares it)
 #: Bytes assumed for an output whose size is not known in advance (a figure, a JSON result):
 #: a lower bound, so that the check before the work never refuses what would fit; a write
 #: that runs out of space later still fails cleanly (nothing is published).
 DEFAULT_SIZE = 16 << 10
+_STAGING_PREFIX = ".brdffit-"
 
 
 class OutputError(BrdffitError):
@@ -52,8 +70,22 @@ class OutputError(BrdffitError):
 
 
 def live_sets() -> list:
-    """The sets not yet published or discarded (for the signal watcher)."""
+    """The sets inside their ``with`` block and not yet published or discarded."""
     return list(_LIVE)
+
+
+def published_count() -> int:
+    """How many sets this process has published (the signal watcher's point of no return)."""
+    return _PUBLISHED[0]
+
+
+def remove_tree(folder) -> None:
+    """Remove ``folder`` and all it holds, again while something re-creates entries in it
+    (``rmtree`` alone gives up when a file appears between its listing and its ``rmdir``)."""
+    for _ in range(50):
+        shutil.rmtree(folder, ignore_errors=True)
+        if not os.path.lexists(folder):
+            return
 
 
 def _describe(path: Path, st) -> str:
@@ -79,47 +111,71 @@ def _check_one(path: Path, force: bool) -> None:
         raise OutputError(f"{path}: folder {str(folder)!r} does not exist; create it first")
 
 
+def _probe(folder: Path) -> None:
+    """Prove ``folder`` writable before any work, leaving nothing there."""
+    with writing():
+        try:
+            os.rmdir(tempfile.mkdtemp(prefix=_STAGING_PREFIX, dir=folder))
+        except OSError as exc:
+            raise _os_error(folder, exc, "write into this folder") from None
+
+
 def _os_error(path, exc: OSError, when: str) -> OutputError:
     reason = exc.strerror or type(exc).__name__
     return OutputError(f"{path}: cannot {when} ({reason}); nothing was written")
 
 
 class OutputSet:
-    """The outputs of one command (see the module docstring). ``sizes`` maps a path to the
-    bytes it will take (default :data:`DEFAULT_SIZE`), for the free-space check."""
+    """The outputs of one command (see the module docstring), a context manager owning its
+    staging folders. ``sizes`` maps a path to the bytes it will take (default
+    :data:`DEFAULT_SIZE`), for the free-space check."""
 
     def __init__(self, paths: Iterable, force: bool, sizes: dict | None = None):
         self.paths = [Path(p) for p in paths if p is not None]
         self.force, self.aborted, self._staging = force, False, {}
+        self._entered = self._closed = False
         self._published: list[Path] = []
         if len({os.path.abspath(p) for p in self.paths}) != len(self.paths):
             raise OutputError("two outputs name the same file; give each output its own path")
         for p in self.paths:
             _check_one(p, force)
-        with LOCK:
-            _LIVE.add(self)
-        try:
-            for p in self.paths:
-                self._folder(p.parent)
-            self._check_room({Path(k): v for k, v in (sizes or {}).items() if k is not None})
-        except BaseException:
-            self.discard()
-            raise
+        folders = {os.path.abspath(p.parent): p.parent for p in self.paths}
+        for folder in folders.values():
+            _probe(folder)
+        self._check_room({Path(k): v for k, v in (sizes or {}).items() if k is not None})
 
     def __enter__(self) -> "OutputSet":
+        with writing(), LOCK:
+            if self._entered:
+                raise RuntimeError("an OutputSet is entered once")
+            self._entered = True
+            _LIVE.add(self)
+            try:
+                for p in self.paths:
+                    self._folder(p.parent)
+            except BaseException:
+                self.discard()
+                raise
         return self
 
     def __exit__(self, *exc) -> None:
         self.discard()
 
     def _folder(self, folder: Path) -> Path:
-        key = os.path.abspath(folder)
-        if key not in self._staging:
-            try:
-                self._staging[key] = Path(tempfile.mkdtemp(prefix=".brdffit-", dir=folder))
-            except OSError as exc:
-                raise _os_error(folder, exc, "write into this folder") from None
-        return self._staging[key]
+        with LOCK:
+            if not self._entered or self._closed:
+                raise OutputError("interrupted before the outputs were published"
+                                  if self.aborted else
+                                  "internal error: outputs are staged only inside the "
+                                  "OutputSet's with block")
+            key = os.path.abspath(folder)
+            if key not in self._staging:
+                try:
+                    self._staging[key] = Path(tempfile.mkdtemp(prefix=_STAGING_PREFIX,
+                                                               dir=folder))
+                except OSError as exc:
+                    raise _os_error(folder, exc, "write into this folder") from None
+            return self._staging[key]
 
     def _check_room(self, sizes: dict) -> None:
         need: dict = {}
@@ -132,7 +188,7 @@ class OutputSet:
             key = os.path.abspath(p.parent)
             need[key] = need.get(key, 0) + size
         for folder, size in need.items():
-            st = os.statvfs(self._staging[folder])
+            st = os.statvfs(folder)
             free = st.f_bavail * st.f_frsize
             if free < size:
                 raise OutputError(f"{folder}: {free:,} bytes free, the outputs need about "
@@ -151,21 +207,23 @@ class OutputSet:
         return self.staged(path)
 
     def write(self, path, fill, base: bool = False) -> Path:
-        """``fill(staged_path)`` with write failures turned into :class:`OutputError`.
+        """``fill(staged_path)``, a write in flight, with write failures turned into
+        :class:`OutputError`.
 
         ``base=True``: ``path`` is a base for several outputs (figures), staged by
         :meth:`staged_base`.
         """
-        target = self.staged_base(path) if base else self.staged(path)
-        try:
-            fill(target)
-        except OSError as exc:
-            raise _os_error(path, exc, "write it") from None
+        with writing():
+            target = self.staged_base(path) if base else self.staged(path)
+            try:
+                fill(target)
+            except OSError as exc:
+                raise _os_error(path, exc, "write it") from None
         return Path(path)
 
     def publish(self) -> list[Path]:
         """Move every staged output into place, all or nothing (module docstring)."""
-        with LOCK:
+        with writing(), LOCK:
             if self.aborted:
                 raise OutputError("interrupted before the outputs were published")
             try:
@@ -178,6 +236,7 @@ class OutputSet:
                 raise
             finally:
                 self.discard()
+            _PUBLISHED[0] += 1
         return list(self.paths)
 
     def _publish_one(self, path: Path) -> None:
@@ -212,10 +271,12 @@ class OutputSet:
         os.replace(staged, path)
 
     def discard(self) -> None:
-        """Remove the staging folders and all they hold (idempotent; published files stay)."""
+        """Remove the staging folders and all they hold (idempotent; published files stay);
+        the set takes no more writes."""
         with LOCK:
+            self._closed = True
             for folder in self._staging.values():
-                shutil.rmtree(folder, ignore_errors=True)
+                remove_tree(folder)
             self._staging.clear()
             _LIVE.discard(self)
 

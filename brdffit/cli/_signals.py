@@ -10,24 +10,46 @@ executes bytecode, which during a long jitted call can be many seconds later.
 So, while a command runs, both signals get a no-op Python handler plus a wakeup file
 descriptor (:func:`signal.set_wakeup_fd`): the C-level handler writes the signal number into a
 pipe at once, and a watcher thread blocked on that pipe wakes immediately, whatever the main
-thread is doing. The watcher takes :data:`brdffit.cli._outputs.LOCK` (so a set that is being
-published finishes first: outputs appear whole or not at all), aborts every live output set
-(removing its staging folder and every temporary in it), runs the registered cleanups, writes
-one line to stderr and ends the process with ``os._exit(128 + signum)``: no interpreter
-teardown under running XLA threads, hence no segfault.
+thread is doing. Then, in this order:
+
+1. **Writes are closed** (:func:`data_formats._atomic.close_writes`): no new write starts (a
+   writer that tries waits until the process ends), and the watcher waits for the writes in
+   flight (a figure, a table, an output set's publication) to finish, for at most
+   :data:`WRITE_GRACE` seconds or until a second signal. Only then is anything removed: a
+   writer half-way through can no longer re-create a staging folder or a temporary after
+   the clean-up (before, a figure writer made its folder again behind the clean-up and left
+   it with a partial figure).
+2. Under :data:`brdffit.cli._outputs.LOCK`: if the command has **published** its outputs
+   since it started (:func:`brdffit.cli._outputs.published_count`), the signal came too late
+   to stop it: writes are opened again, the signal is ignored and the command ends with its
+   own exit status (0; 1 for a fit that did not converge). Otherwise every live output set
+   is aborted (its staging folder and every temporary in it removed; it can no longer
+   publish), the registered cleanups run, one line goes to stderr and the process ends with
+   ``os._exit(128 + signum)``: no interpreter teardown under running XLA threads, hence no
+   segfault.
+
+So a signal gives one of two outcomes, never a mix: the outputs published and the command's
+own exit status, or nothing published and exit status 130 (``SIGINT``) / 143 (``SIGTERM``).
+A signal that is ignored when the command starts (``nohup``, a shell's background job) stays
+ignored.
 """
 
 from __future__ import annotations
 
 import os
+import select
 import signal
 import threading
+
+from data_formats._atomic import close_writes, open_writes
 
 from . import _outputs
 
 __all__ = ["SignalExit", "add_cleanup", "remove_cleanup"]
 
 _CLEANUPS: list = []
+#: Seconds a signal waits for the writes in flight before it removes what they were writing.
+WRITE_GRACE = 10.0
 _NAMES = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated"}
 
 
@@ -53,14 +75,17 @@ class SignalExit:
     def __init__(self, command: str):
         self.command = command
         self._saved = None
+        self._published = _outputs.published_count()
 
     def __enter__(self) -> "SignalExit":
         if threading.current_thread() is not threading.main_thread():
             return self
+        self._published = _outputs.published_count()
         self._read, self._write = os.pipe()
         os.set_blocking(self._write, False)
         self._old_fd = signal.set_wakeup_fd(self._write, warn_on_full_buffer=False)
-        self._saved = {s: signal.signal(s, _noop) for s in _NAMES}
+        self._saved = {s: signal.signal(s, _noop) for s in _NAMES
+                       if signal.getsignal(s) is not signal.SIG_IGN}  # nohup, a background job
         self._thread = threading.Thread(target=self._watch, name="brdffit-signals", daemon=True)
         self._thread.start()
         return self
@@ -85,8 +110,16 @@ class SignalExit:
             if data[0] in _NAMES:
                 self._exit(data[0])
 
+    def _another_signal(self) -> bool:
+        """True when a further signal (or the end of the command) is waiting in the pipe."""
+        return bool(select.select([self._read], [], [], 0)[0])
+
     def _exit(self, signum: int) -> None:
-        with _outputs.LOCK:  # never lifted: the process ends inside
+        close_writes(WRITE_GRACE, stop=self._another_signal)
+        with _outputs.LOCK:  # never lifted when the process ends inside
+            if _outputs.published_count() > self._published:  # too late to stop the command
+                open_writes()
+                return
             for output_set in _outputs.live_sets():
                 output_set.abort()
             for fn in list(_CLEANUPS):

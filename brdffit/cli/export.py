@@ -44,12 +44,14 @@ def run(args) -> int:
 
     from ..export import export
 
-    check_outputs([args.output], args.force)
-    result = _read_result(args.result, model=args.model, flag="")
-    start = time.perf_counter()
-    out = export(result, args.to, approximate=args.approximate)
-    write_text(args.output, out.text())
-    seconds = time.perf_counter() - start
+    with check_outputs([args.output], args.force) as outputs:
+        result = _read_result(args.result, model=args.model, flag="")
+        start = time.perf_counter()
+        out = export(result, args.to, approximate=args.approximate)
+        text = out.text()
+        outputs.write(args.output, lambda tmp: write_text(tmp, text))
+        seconds = time.perf_counter() - start
+        outputs.publish()
     if out.approximation is not None:
         m = out.approximation.metrics
         print(f"{out.model_name} approximates the {result.model_name} fit "

@@ -4,12 +4,14 @@ The scene of :mod:`brdffit.export.render` (orthographic view, one directional li
 the view axis, a constant environment): a few seconds or less on a CPU with the ``scalar_rgb``
 variant. Needs ``pip install 'brdffit[mitsuba]'``. A result whose model is not a Mitsuba model
 needs ``--approximate`` (see ``brdffit export``); ``--model NAME`` picks one result of a file of
-several, as there.
+several, as there. ``--size``, ``--spp`` and ``--environment`` are checked against
+:data:`brdffit.export.render.RENDER_OPTION_RANGES` before anything is read (one line, exit code
+2); the PNG is staged and published by :mod:`brdffit.cli._outputs`.
 """
 
 from __future__ import annotations
 
-from ._common import UsageError, atomic_write, check_outputs
+from ._common import check_outputs, number
 from .plotting import _read_result, add_model_option
 
 
@@ -25,10 +27,13 @@ def add_parser(sub, parents) -> None:
     p.add_argument("result", metavar="RESULT.json", help="a result written by `brdffit fit --out`")
     add_model_option(p, "render")
     p.add_argument("--output", "-o", required=True, metavar="SPHERE.png", help="the PNG to write")
-    p.add_argument("--size", type=int, default=256, help="image width and height in pixels (256)")
-    p.add_argument("--spp", type=int, default=16, help="samples per pixel (16)")
-    p.add_argument("--environment", type=float, default=0.1, metavar="L",
-                   help="radiance of the constant environment (0.1; 0 for the light alone)")
+    p.add_argument("--size", type=number, default=256, metavar="N",
+                   help="image width and height in pixels, 8 to 4096 (256)")
+    p.add_argument("--spp", type=number, default=16, metavar="N",
+                   help="samples per pixel, 1 to 4096 (16)")
+    p.add_argument("--environment", type=number, default=0.1, metavar="L",
+                   help="radiance of the constant environment, 0 to 100 (0.1; 0 for the light "
+                   "alone)")
     p.add_argument("--approximate", action="store_true",
                    help="render the native Mitsuba model fitted to a non-native result")
     p.add_argument("--force", action="store_true", help="overwrite the PNG if it exists")
@@ -39,18 +44,21 @@ def run(args) -> int:
     import time
 
     from ..export import export
-    from ..export.render import render_mitsuba, write_png
+    from ..export.render import check_render_options, render_mitsuba, write_png
 
-    if args.size < 8 or args.spp < 1:
-        raise UsageError(f"--size {args.size} / --spp {args.spp}: need size ≥ 8 and spp ≥ 1")
-    check_outputs([args.output], args.force)
-    result = _read_result(args.result, model=args.model, flag="")
-    out = export(result, "mitsuba-dict", approximate=args.approximate)
-    start = time.perf_counter()
-    image = render_mitsuba(out.payload, size=args.size, spp=args.spp, environment=args.environment)
-    seconds = time.perf_counter() - start
-    atomic_write(args.output, lambda tmp: write_png(image, tmp))
+    check_render_options(lambda name: f"--{name}", size=args.size, spp=args.spp,
+                         environment=args.environment)
+    with check_outputs([args.output], args.force) as outputs:
+        result = _read_result(args.result, model=args.model, flag="")
+        out = export(result, "mitsuba-dict", approximate=args.approximate)
+        start = time.perf_counter()
+        image = render_mitsuba(out.payload, size=args.size, spp=args.spp,
+                               environment=float(args.environment))
+        seconds = time.perf_counter() - start
+        outputs.write(args.output, lambda tmp: write_png(image, tmp))
+        outputs.publish()
     if not args.quiet:
         print(f"wrote {args.output} ({out.model_name}, {args.size}x{args.size}, {args.spp} spp, "
               f"rendered in {seconds:.2f} s)")
     return 0
+

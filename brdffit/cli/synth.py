@@ -25,8 +25,8 @@ def add_parser(sub, parents) -> None:
                    help="a parameter value, e.g. alpha=0.1 or f0=0.9,0.6,0.3 (one number fills "
                    "all three channels); repeatable; others take the model's defaults")
     p.add_argument("--noise", type=float, default=0.0, metavar="SIGMA",
-                   help="multiplicative Gaussian noise, relative std. dev. (0.02 = 2%%); "
-                   "negative results are clipped to 0")
+                   help="multiplicative Gaussian noise, relative std. dev. in [0, 10] "
+                   "(0.02 = 2%%); negative results are clipped to 0")
     p.add_argument("--seed", type=int, default=0, help="random seed for noise and samples")
     p.add_argument("--samples", type=int, default=100_000, metavar="N",
                    help="number of random direction pairs for a .csv/.npz output (default 100000)")
@@ -36,9 +36,14 @@ def add_parser(sub, parents) -> None:
     p.set_defaults(run=run)
 
 
+#: The largest relative noise (1000%): beyond it nearly every value is noise or clipped to 0.
+MAX_NOISE = 10.0
+
+
 def _check_noise(sigma) -> None:
-    if not (np.isfinite(sigma) and sigma >= 0):
-        raise UsageError(f"--noise {sigma:g}: the noise level must be a finite number ≥ 0")
+    if not (np.isfinite(sigma) and 0 <= sigma <= MAX_NOISE):
+        raise UsageError(f"--noise {sigma:g}: the noise level must be a finite number in "
+                         f"[0, {MAX_NOISE:g}] (a relative standard deviation)")
 
 
 def _noisy(rgb, sigma, rng):

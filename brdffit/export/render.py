@@ -9,6 +9,11 @@ covering ``[−1, 1]²``), one ``directional`` emitter of irradiance ``E`` arriv
 jittered samples); the environment adds the directional albedo times ``L_env``. Mitsuba's
 ``direct`` integrator (one bounce; a sphere does not see itself) and the ``scalar_rgb`` variant,
 so no LLVM is needed.
+
+Every option has a range (:data:`RENDER_OPTION_RANGES`: ``size`` in ``[8, 4096]`` pixels,
+``spp`` in ``[1, 4096]``, ``environment`` in ``[0, 100]``; ``irradiance`` finite and positive;
+at most :data:`MAX_RENDER_SAMPLES` samples in all); a value outside, NaN or infinite is refused
+with :class:`~brdffit.errors.ConfigError` before Mitsuba is called, never clamped or dropped.
 """
 
 from __future__ import annotations
@@ -16,6 +21,36 @@ from __future__ import annotations
 import numpy as np
 
 from ..plots.sphere import DEFAULT_LIGHT
+
+#: Ranges of the scene's options, as :func:`brdffit.config.check_fit_options` takes them:
+#: name -> (integer, low, high, low included, wanted). ``environment`` is a radiance relative
+#: to the light's irradiance (1 by default).
+RENDER_OPTION_RANGES = {
+    "size": (True, 8, 4096, True, "an integer in [8, 4096]"),
+    "spp": (True, 1, 4096, True, "an integer in [1, 4096]"),
+    "environment": (False, 0.0, 100.0, True, "a number in [0, 100] (0: the light alone)"),
+    "irradiance": (False, 0.0, 1e6, False, "a number in (0, 1e6]"),
+    "seed": (True, 0, 2**31 - 1, True, "an integer in [0, 2^31 - 1]"),
+}
+#: The most samples one render may take (``size² · spp``): a minute or two on one core.
+MAX_RENDER_SAMPLES = 1 << 26
+
+
+def check_render_options(label=None, **options) -> dict:
+    """Refuse options outside :data:`RENDER_OPTION_RANGES` or more than
+    :data:`MAX_RENDER_SAMPLES` samples (:class:`~brdffit.errors.ConfigError`; ``label(name)``
+    names an option in the message, e.g. ``--spp`` on the command line)."""
+    from ..config import check_fit_options
+    from ..errors import ConfigError
+
+    label = label or repr
+    check_fit_options(options, label, RENDER_OPTION_RANGES)
+    size, spp = options.get("size"), options.get("spp")
+    if size is not None and spp is not None and size * size * spp > MAX_RENDER_SAMPLES:
+        raise ConfigError(f"{label('size')} {size} with {label('spp')} {spp} is "
+                          f"{size * size * spp:,} samples, more than {MAX_RENDER_SAMPLES:,}; "
+                          f"lower the size or the samples per pixel")
+    return options
 
 
 def _mitsuba():
@@ -35,8 +70,14 @@ def _mitsuba():
 def sphere_scene(bsdf: dict, *, size: int = 64, spp: int = 16, light_dir=DEFAULT_LIGHT,
                  irradiance: float = 1.0, environment: float = 0.1, seed: int = 0) -> dict:
     """The ``mitsuba.load_dict`` scene of the module docstring around the material ``bsdf``."""
+    check_render_options(size=size, spp=spp, environment=environment, irradiance=irradiance,
+                         seed=seed)
     mi = _mitsuba()
     light = np.asarray(light_dir, float)
+    if light.shape != (3,) or not np.all(np.isfinite(light)) or not np.linalg.norm(light) > 0:
+        from ..errors import ConfigError
+
+        raise ConfigError(f"light_dir {light_dir!r}: give a finite, non-zero 3-vector")
     light = light / np.linalg.norm(light)
     scene = {
         "type": "scene",
