@@ -299,3 +299,15 @@ def test_synth_noise_has_an_upper_bound(capsys, tmp_path, noise):
     code = main(["synth", "--model", "ggx", "--noise", noise, "-o", str(tmp_path / "n.binary")])
     _one_line_error(capsys, code, "--noise", "must be a finite number in [0, 10]")
     assert _leftovers(tmp_path) == []
+
+
+def test_a_signal_during_the_programs_teardown_keeps_the_commands_status(tmp_path):
+    """Before: SIGINT while JAX's exit handler ran (after every output was published) printed
+    a ``KeyboardInterrupt`` traceback from ``clear_backends``."""
+    child = ("import atexit, os, signal, time\n"
+             "from brdffit.cli._signals import finish_on_signal\n"
+             "atexit.register(lambda: (os.kill(os.getpid(), signal.SIGINT), time.sleep(2)))\n"
+             "finish_on_signal(1)\n")
+    p = subprocess.run([sys.executable, "-c", child], env={**os.environ, "PYTHONPATH": str(ROOT)},
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == 1 and p.stderr == "", p.stderr

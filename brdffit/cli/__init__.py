@@ -169,6 +169,9 @@ def run() -> NoReturn:
     nothing. An exception that escapes :func:`main` (a bug) ends the process the usual way.
     """
     code = main()
+    from ._signals import finish_on_signal
+
+    finish_on_signal(code)  # a signal from here on: the command's status, no traceback
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()

@@ -281,7 +281,7 @@ class OutputSet:
             _LIVE.discard(self)
 
     def abort(self) -> None:
-        """On a signal: undo a partial publication, remove the staging folders."""
+        """On a signal: remove the staging folders; the set can no longer publish."""
         with LOCK:
             self.aborted = True
             self.discard()

@@ -31,7 +31,8 @@ thread is doing. Then, in this order:
 So a signal gives one of two outcomes, never a mix: the outputs published and the command's
 own exit status, or nothing published and exit status 130 (``SIGINT``) / 143 (``SIGTERM``).
 A signal that is ignored when the command starts (``nohup``, a shell's background job) stays
-ignored.
+ignored. After the command has returned, :func:`finish_on_signal` covers the program's last
+steps (a signal ends it with the command's own status).
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ from data_formats._atomic import close_writes, open_writes
 
 from . import _outputs
 
-__all__ = ["SignalExit", "add_cleanup", "remove_cleanup"]
+__all__ = ["SignalExit", "add_cleanup", "remove_cleanup", "finish_on_signal"]
 
 _CLEANUPS: list = []
 #: Seconds a signal waits for the writes in flight before it removes what they were writing.
@@ -63,6 +64,20 @@ def remove_cleanup(fn) -> None:
     with _outputs.LOCK:
         if fn in _CLEANUPS:
             _CLEANUPS.remove(fn)
+
+
+def finish_on_signal(code: int) -> None:
+    """For the program's last steps after the command has returned (flushing, the exit
+    handlers that tear JAX down): a signal then ends the process at once with the command's
+    own status ``code``, without a ``KeyboardInterrupt`` traceback from an exit handler (the
+    command's outputs are complete by then)."""
+
+    def handler(signum, frame):
+        os._exit(code)
+
+    for s in _NAMES:
+        if signal.getsignal(s) is not signal.SIG_IGN:
+            signal.signal(s, handler)
 
 
 def _noop(signum, frame) -> None:  # the watcher thread does the work
