@@ -1,8 +1,12 @@
-from brdffit.cli import main, run
-
-__all__ = ["main", "run"]
+"""``python cli.py ...``: the ``brdffit`` program from a checkout (the console script's twin)."""
 
 # Guarded: worker processes started by `brdffit batch` (multiprocessing "spawn") import the
 # main module again, and must not run the command line themselves.
 if __name__ == "__main__":
+    from brdffit._program import run
+
     run()
+else:
+    from brdffit.cli import main, run
+
+    __all__ = ["main", "run"]

@@ -37,7 +37,7 @@ import tempfile
 import time
 from pathlib import Path
 
-BRDFFIT = [sys.executable, "-c", "from brdffit.cli import run; run()"]  # the console script
+BRDFFIT = [sys.executable, "-c", "from brdffit._program import run; run()"]  # the console script
 
 #: The goal for a cold ``brdffit fit --model ggx`` of a full table, compilation included (s).
 GOAL_S = 8.0

@@ -3,6 +3,7 @@ error cases, in-process through ``main(argv)`` (same code path, no JAX start-up 
 
 import json
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -106,11 +107,12 @@ def test_models_lists_the_registry(capsys):
 
 
 def test_the_program_ends_with_the_commands_code_and_all_its_output(tmp_path):
-    """The console script is ``run`` (``os._exit`` after the exit handlers): its piped output
+    """The console script is ``brdffit._program.run``, which calls ``brdffit.cli.run``
+    (``os._exit`` after the exit handlers): its piped output
     is the whole of what ``main`` prints in a process that ends the usual way, and its exit
     code is the command's."""
     scripts = (ROOT / "pyproject.toml").read_text()
-    assert 'brdffit = "brdffit.cli:run"' in scripts
+    assert 'brdffit = "brdffit._program:run"' in scripts
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     usual = subprocess.run(
         [sys.executable, "-c", "import sys; from brdffit.cli import main; sys.exit(main(['models']))"],
@@ -120,6 +122,38 @@ def test_the_program_ends_with_the_commands_code_and_all_its_output(tmp_path):
     assert listed.returncode == 0 and listed.stdout == usual.stdout and listed.stderr == ""
     missing = brdffit_cli("info", tmp_path / "missing.binary", cwd=tmp_path)
     assert missing.returncode == 2 and missing.stderr.count("\n") == 1, missing.stderr
+
+
+EARLY_SIGNAL = """
+import os, sys, time, types
+
+import brdffit._program as program
+
+
+class Importing(types.ModuleType):
+    \"\"\"Stands for brdffit.cli while it is being imported: the signal arrives then.\"\"\"
+
+    def __getattr__(self, name):
+        os.kill(os.getpid(), SIGNAL)
+        time.sleep(5)
+        raise AttributeError(name)
+
+
+sys.modules["brdffit.cli"] = Importing("brdffit.cli")
+program.run()
+print("no signal handler ended the start-up")
+"""
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_during_start_up_ends_the_program_quietly(tmp_path, sig, code):
+    """An interrupt while the command line is still being imported (before its signal watcher
+    exists) printed a KeyboardInterrupt traceback; now the program ends with 128 + signal."""
+    script = tmp_path / "early.py"
+    script.write_text(EARLY_SIGNAL.replace("SIGNAL)", f"{int(sig)})"))
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+    assert (r.returncode, r.stdout, r.stderr) == (code, "", "")
 
 
 def _fails(capsys, argv, message, code=2):

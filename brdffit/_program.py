@@ -1,0 +1,34 @@
+"""The ``brdffit`` program's first lines: an interrupt during start-up ends it quietly.
+
+Importing the command line (argparse, every command's module, what they import) takes about
+0.1 s before :func:`brdffit.cli.main` installs its signal watcher (:mod:`brdffit.cli._signals`);
+an interrupt in that window printed a ``KeyboardInterrupt`` traceback from the middle of an
+import. Nothing has been read or written yet, so :func:`run` ends the process at once with the
+signal's status (130 for ``SIGINT``, 143 for ``SIGTERM``) until the command line is imported,
+then puts the handlers back for :func:`brdffit.cli.run`. Signals ignored at start (``nohup``)
+stay ignored. This module imports nothing of brdffit before the handlers are in place.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+
+__all__ = ["run"]
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def _end(signum, frame) -> None:
+    os._exit(128 + signum)
+
+
+def run() -> None:
+    """The console script: :func:`brdffit.cli.run`, with start-up interrupts handled."""
+    saved = {s: signal.signal(s, _end) for s in SIGNALS
+             if signal.getsignal(s) is not signal.SIG_IGN}
+    from .cli import run as command_line
+
+    for s, handler in saved.items():
+        signal.signal(s, handler)
+    command_line()
