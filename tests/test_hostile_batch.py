@@ -355,3 +355,23 @@ def test_closing_the_cluster_on_a_signal_leaks_nothing(tmp_path):
     worker = int(done.stdout.split()[0])
     gone = not psutil.pid_exists(worker) or psutil.Process(worker).status() == "zombie"
     assert gone
+
+
+@pytest.mark.parametrize("workers", ["0", "-3", "100000"])
+def test_the_number_of_local_workers_is_ranged(tmp_path, capsys, workers):
+    """``--workers 100000`` tried to start that many processes."""
+    from brdffit.cli import main
+
+    code = main(["batch", str(tmp_path / "a.csv"), "-m", "ggx", "-o", str(tmp_path / "out"),
+                 "--workers", workers])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "from 1 to 256" in err, err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("workers", [0, 257, 2.5, True])
+def test_fit_many_ranges_its_local_workers(workers):
+    from brdffit.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="from 1 to 256"), runner.open_client(workers=workers):
+        pass

@@ -101,6 +101,25 @@ def check_scheduler_address(address, source: str = "--scheduler") -> str:
     return f"{scheme.lower()}://{rest}"
 
 
+#: The most local worker processes a batch starts: each is a Python process of its own with a
+#: share of the cores (:mod:`.pinning`) and :data:`WORKER_MEMORY` of memory.
+MAX_LOCAL_WORKERS = 256
+
+
+def check_workers(workers, source: str = "workers") -> int | None:
+    """``workers`` as an int in 1 to :data:`MAX_LOCAL_WORKERS` (``None`` stays ``None``: one
+    per core); :class:`~brdffit.errors.ConfigError` in one line otherwise."""
+    from ..errors import ConfigError
+
+    if workers is None:
+        return None
+    if isinstance(workers, bool) or not isinstance(workers, int) or \
+            not 1 <= workers <= MAX_LOCAL_WORKERS:
+        raise ConfigError(f"{source} {workers!r}: give a whole number of local worker "
+                          f"processes from 1 to {MAX_LOCAL_WORKERS} (default: one per core)")
+    return int(workers)
+
+
 def default_workers() -> int:
     """One worker per CPU core available to this process, at most one per
     :data:`WORKER_MEMORY` of the machine's memory."""
@@ -139,7 +158,8 @@ def open_client(client=None, *, workers: int | None = None, scheduler: str | Non
         with c:
             yield c, f"scheduler {address}"
         return
-    with _local_cluster(int(workers or default_workers()), dashboard) as c:
+    workers = check_workers(workers)
+    with _local_cluster(workers or default_workers(), dashboard) as c:
         yield c
 
 

@@ -69,8 +69,7 @@ def jobs_from(args):
     from ..batch import inputs, runner
     from .fitting import options_from
 
-    if args.workers is not None and args.workers < 1:
-        raise UsageError(f"--workers {args.workers}: give at least 1")
+    runner.check_workers(args.workers, "--workers")
     if args.dashboard is not False:
         _check_dashboard(args)
     if args.scheduler is not None:
