@@ -190,6 +190,14 @@ def test_from_json_reads_text_with_or_without_a_bom(tmp_path, good):
         FitResult.from_json(str(tmp_path / "absent.json"))
 
 
+@pytest.mark.parametrize("text", ['"x"', "null", "1e3", "x" * 300, "y" * 4000])
+def test_a_str_that_names_no_file_and_is_json_or_no_file_name_is_read_as_text(text):
+    """Before: ``FileNotFoundError`` for '"x"' and ``OSError: File name too long`` for a long
+    word: neither names a file, and the format's own error says what the text holds."""
+    with pytest.raises(ResultFormatError, match=r"^<string>: not a brdffit result"):
+        FitResult.from_json(text)
+
+
 def _mutations(d: dict):
     """The 340-style cases: truncations, each field of each wrong type, each key missing, extra
     keys, huge and special numbers, deep nesting, other documents."""

@@ -16,6 +16,7 @@ caller to report (``result.model`` raises :class:`~brdffit.errors.UnknownNameErr
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import numbers
@@ -56,7 +57,9 @@ def is_json_text(source) -> bool:
     """True when ``source`` is JSON text rather than a path: ``bytes``, or a ``str`` that, past
     a byte-order mark and white space, starts with ``{`` or ``[``, or that no file name can be
     (empty, white space, a leading byte-order mark, a newline or a NUL in it, longer than
-    ``PATH_MAX``). ``os.PathLike`` is a path."""
+    ``PATH_MAX``). ``os.PathLike`` is a path. A ``str`` read as a path that turns out to be no
+    file name (a component too long), or to name no file while being JSON, is read as text
+    (:func:`read_document`)."""
     if isinstance(source, (bytes, bytearray)):
         return True
     if not isinstance(source, str):
@@ -72,7 +75,23 @@ def read_document(source):
         return "<string>", parse_text("<string>", source)
     if not isinstance(source, (str, os.PathLike)):
         raise TypeError(f"expected a path or JSON text, got {type(source).__name__}")
-    return os.fspath(source), parse_text(os.fspath(source), Path(source).read_bytes())
+    try:
+        raw = Path(source).read_bytes()
+    except OSError as exc:
+        # A str that no file name can be (a component too long) or that names no file but is
+        # JSON ('"x"', 'null') was meant as text: the format's own error says what it holds.
+        if isinstance(source, str) and (exc.errno == errno.ENAMETOOLONG or _is_json(source)):
+            return "<string>", parse_text("<string>", source)
+        raise
+    return os.fspath(source), parse_text(os.fspath(source), raw)
+
+
+def _is_json(text: str) -> bool:
+    try:
+        json.loads(text)
+    except (ValueError, RecursionError):
+        return False
+    return True
 
 
 def parse_text(name, raw):
