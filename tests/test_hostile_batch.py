@@ -342,12 +342,16 @@ if __name__ == "__main__":
 def test_closing_the_cluster_on_a_signal_leaks_nothing(tmp_path):
     """The signal watcher ends the process with ``os._exit``: before it, the workers are
     stopped and the cluster closed, so no worker outlives the batch and ``multiprocessing``
-    finds no leaked semaphore (without this it warns of them at every interrupted batch)."""
+    finds no leaked semaphore (without this it warns of them at every interrupted batch), and
+    the cluster's scratch space goes with it (before: Dask's worker lock files stayed in the
+    temporary folder)."""
     import psutil
 
     script = tmp_path / "interrupted.py"
     script.write_text(SIGNAL_EXIT)
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
+    (tmp_path / "tmp").mkdir()
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent),
+           "TMPDIR": str(tmp_path / "tmp")}
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
                           env=env, timeout=120)
     assert done.returncode == 130, done.stderr
@@ -355,6 +359,7 @@ def test_closing_the_cluster_on_a_signal_leaks_nothing(tmp_path):
     worker = int(done.stdout.split()[0])
     gone = not psutil.pid_exists(worker) or psutil.Process(worker).status() == "zombie"
     assert gone
+    assert list((tmp_path / "tmp").iterdir()) == []
 
 
 @pytest.mark.parametrize("workers", ["0", "-3", "100000"])

@@ -36,6 +36,8 @@ import contextlib
 import dataclasses
 import logging
 import os
+import shutil
+import tempfile
 import time
 import uuid
 
@@ -63,7 +65,7 @@ DEFAULT_DASHBOARD = "127.0.0.1:8787"
 
 
 #: The local clusters open now (for :func:`close_local_clusters`).
-_LIVE_CLUSTERS: set = set()
+_LIVE_CLUSTERS: dict = {}  # cluster → its scratch folder
 
 
 class SchedulerError(BrdffitError):
@@ -173,42 +175,49 @@ def _local_cluster(n: int, dashboard: str | None):
     from . import nohttp, pinning
 
     security = Security.temporary()
-    with dask.config.set(LOCAL_SCHEDULER):
+    # The scheduler's and workers' scratch space (Dask's "temporary-directory", its lock files
+    # included) lives in a folder of this batch's own, removed with the cluster: a worker
+    # killed by a signal can leave no lock file in the shared temporary folder.
+    scratch = tempfile.mkdtemp(prefix="brdffit-dask-")
+    settings = {**LOCAL_SCHEDULER, "temporary-directory": scratch}
+    with dask.config.set(settings):
         # Started without workers, so that a signal during their start finds the cluster
         # (close_local_clusters); the workers are added below.
         cluster = nohttp.QuietCluster(n_workers=0, threads_per_worker=1, processes=True,
                                       host="127.0.0.1", protocol="tls://", security=security,
                                       dashboard=bool(dashboard), dashboard_address=dashboard,
                                       silence_logs=logging.ERROR, env={"MPLBACKEND": "Agg"})
-    _LIVE_CLUSTERS.add(cluster)
+    _LIVE_CLUSTERS[cluster] = scratch
     try:
         with cluster, Client(cluster, security=security) as c:
             groups = pinning.core_groups(n)
             if n > 1 and groups:
                 c.register_plugin(pinning.PinCores(groups))
-            with dask.config.set(LOCAL_SCHEDULER):  # the nannies take the settings as they start
+            with dask.config.set(settings):  # the nannies take the settings as they start
                 for _ in range(n):  # what scale(n) does, but waiting and raising as
                     cluster.worker_spec.update(nohttp.quiet_workers(  # LocalCluster(n)
                         cluster.new_worker_spec()))
                 cluster.sync(cluster._correct_state)
             yield c, f"{n} local worker{'s' * (n != 1)}"
     finally:
-        _LIVE_CLUSTERS.discard(cluster)
+        _LIVE_CLUSTERS.pop(cluster, None)
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 def close_local_clusters(timeout: float = 5) -> None:
     """Close the local clusters started here that still run: for a signal handler that is
     about to end the process, so that the workers stop and their semaphores are released
-    (no "leaked semaphore" warning from ``multiprocessing``)."""
+    (no "leaked semaphore" warning from ``multiprocessing``) and their scratch folders go."""
     import signal
 
     logging.disable(logging.CRITICAL)  # the process ends: lost jobs and workers are expected
-    for cluster in list(_LIVE_CLUSTERS):
+    for cluster, scratch in list(_LIVE_CLUSTERS.items()):
         for nanny in list(getattr(cluster, "_created", ())):  # a fit does not stop soon
             with contextlib.suppress(Exception):
                 os.kill(nanny.process.process.pid, signal.SIGKILL)
         with contextlib.suppress(Exception):
             cluster.close(timeout=timeout)
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 @dataclasses.dataclass
