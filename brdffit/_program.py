@@ -7,16 +7,34 @@ import. Nothing has been read or written yet, so :func:`run` ends the process at
 signal's status (130 for ``SIGINT``, 143 for ``SIGTERM``) until the command line is imported,
 then puts the handlers back for :func:`brdffit.cli.run`. Signals ignored at start (``nohup``)
 stay ignored. This module imports nothing of brdffit before the handlers are in place.
+
+A local ``brdffit batch`` starts its worker processes with multiprocessing's "spawn", which
+imports the program (this module) as the worker's main module first: such a process ignores
+``SIGINT`` from then on (:func:`ignore_interrupts_in_workers`). A Ctrl-C at a terminal reaches
+the whole process group; the command's own process stops its workers
+(:func:`brdffit.batch.runner.close_local_clusters`), and a worker interrupted in its imports
+printed a ``KeyboardInterrupt`` traceback.
 """
 
 from __future__ import annotations
 
 import os
 import signal
+import sys
 
 __all__ = ["run"]
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def ignore_interrupts_in_workers(argv=None) -> bool:
+    """Ignore ``SIGINT`` when this process is a multiprocessing "spawn" child (its command line
+    ends in ``--multiprocessing-fork``: ``multiprocessing.spawn.is_forking``); True if so."""
+    argv = sys.argv if argv is None else argv
+    if len(argv) >= 2 and argv[1] == "--multiprocessing-fork":
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        return True
+    return False
 
 
 def _end(signum, frame) -> None:
@@ -32,3 +50,6 @@ def run() -> None:
     for s, handler in saved.items():
         signal.signal(s, handler)
     command_line()
+
+
+ignore_interrupts_in_workers()

@@ -156,6 +156,18 @@ def test_a_signal_during_start_up_ends_the_program_quietly(tmp_path, sig, code):
     assert (r.returncode, r.stdout, r.stderr) == (code, "", "")
 
 
+def test_a_batch_worker_process_ignores_interrupts():
+    """multiprocessing's "spawn" children (a local batch's workers) import the program as
+    their main module: they ignore SIGINT, which a terminal sends to the whole process group
+    (the command stops them itself); a worker interrupted in its imports printed a traceback."""
+    probe = ("import signal, sys; sys.argv[1:] = {argv!r}; import brdffit._program; "
+             "print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN)")
+    for argv, ignored in ((["--multiprocessing-fork", "tracker_fd=5"], "True"), ([], "False")):
+        r = subprocess.run([sys.executable, "-c", probe.format(argv=argv)], capture_output=True,
+                           text=True, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+        assert r.stdout.strip() == ignored, r.stderr
+
+
 def _fails(capsys, argv, message, code=2):
     """Run ``argv``; expect exit ``code`` and one line on stderr containing ``message``."""
     assert main(argv) == code
