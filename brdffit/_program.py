@@ -9,7 +9,7 @@ then puts the handlers back for :func:`brdffit.cli.run`. Signals ignored at star
 stay ignored. This module imports nothing of brdffit before the handlers are in place.
 
 A local ``brdffit batch`` starts its worker processes with multiprocessing's "spawn", which
-imports the program (this module) as the worker's main module first: such a process ignores
+imports the program as the worker's main module first (``__mp_main__``): such a process ignores
 ``SIGINT`` from then on (:func:`ignore_interrupts_in_workers`). A Ctrl-C at a terminal reaches
 the whole process group; the command's own process stops its workers
 (:func:`brdffit.batch.runner.close_local_clusters`), and a worker interrupted in its imports
@@ -27,11 +27,12 @@ __all__ = ["run"]
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
-def ignore_interrupts_in_workers(argv=None) -> bool:
-    """Ignore ``SIGINT`` when this process is a multiprocessing "spawn" child (its command line
-    ends in ``--multiprocessing-fork``: ``multiprocessing.spawn.is_forking``); True if so."""
-    argv = sys.argv if argv is None else argv
-    if len(argv) >= 2 and argv[1] == "--multiprocessing-fork":
+def ignore_interrupts_in_workers() -> bool:
+    """Ignore ``SIGINT`` when this process is a multiprocessing "spawn" child that is importing
+    the program as its main module (which it then runs under the name ``__mp_main__``, the
+    parent's under ``__main__``); True if so."""
+    main = sys.modules.get("__mp_main__")
+    if getattr(main, "__name__", None) == "__mp_main__":
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         return True
     return False

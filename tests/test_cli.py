@@ -160,12 +160,14 @@ def test_a_batch_worker_process_ignores_interrupts():
     """multiprocessing's "spawn" children (a local batch's workers) import the program as
     their main module: they ignore SIGINT, which a terminal sends to the whole process group
     (the command stops them itself); a worker interrupted in its imports printed a traceback."""
-    probe = ("import signal, sys; sys.argv[1:] = {argv!r}; import brdffit._program; "
+    probe = ("import signal, sys, types; {setup}; import brdffit._program; "
              "print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN)")
-    for argv, ignored in ((["--multiprocessing-fork", "tracker_fd=5"], "True"), ([], "False")):
-        r = subprocess.run([sys.executable, "-c", probe.format(argv=argv)], capture_output=True,
+    child = "sys.modules['__mp_main__'] = types.ModuleType('__mp_main__')"  # as spawn runs it
+    parent = "import multiprocessing"  # the parent's __mp_main__ is its __main__
+    for setup, ignored in ((child, "True"), (parent, "False"), ("pass", "False")):
+        r = subprocess.run([sys.executable, "-c", probe.format(setup=setup)], capture_output=True,
                            text=True, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
-        assert r.stdout.strip() == ignored, r.stderr
+        assert r.stdout.strip() == ignored, (setup, r.stderr)
 
 
 def _fails(capsys, argv, message, code=2):
