@@ -65,7 +65,9 @@ DEFAULT_DASHBOARD = "127.0.0.1:8787"
 
 
 #: The local clusters open now (for :func:`close_local_clusters`).
-_LIVE_CLUSTERS: dict = {}  # cluster → its scratch folder
+_LIVE_CLUSTERS: set = set()
+#: Their scratch folders, registered before the cluster is made (a signal may come meanwhile).
+_SCRATCH: set = set()
 
 
 class SchedulerError(BrdffitError):
@@ -168,17 +170,30 @@ def open_client(client=None, *, workers: int | None = None, scheduler: str | Non
 @contextlib.contextmanager
 def _local_cluster(n: int, dashboard: str | None):
     """A client of a new local cluster of ``n`` pinned worker processes (module docstring)."""
-    import dask
-    from distributed import Client
     from distributed.security import Security
-
-    from . import nohttp, pinning
 
     security = Security.temporary()
     # The scheduler's and workers' scratch space (Dask's "temporary-directory", its lock files
     # included) lives in a folder of this batch's own, removed with the cluster: a worker
     # killed by a signal can leave no lock file in the shared temporary folder.
     scratch = tempfile.mkdtemp(prefix="brdffit-dask-")
+    _SCRATCH.add(scratch)
+    try:
+        with _cluster_in(scratch, n, dashboard, security) as c:
+            yield c
+    finally:
+        _SCRATCH.discard(scratch)
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def _cluster_in(scratch: str, n: int, dashboard: str | None, security):
+    """:func:`_local_cluster`'s cluster, with its scratch space in ``scratch``."""
+    import dask
+    from distributed import Client
+
+    from . import nohttp, pinning
+
     settings = {**LOCAL_SCHEDULER, "temporary-directory": scratch}
     with dask.config.set(settings):
         # Started without workers, so that a signal during their start finds the cluster
@@ -187,7 +202,7 @@ def _local_cluster(n: int, dashboard: str | None):
                                       host="127.0.0.1", protocol="tls://", security=security,
                                       dashboard=bool(dashboard), dashboard_address=dashboard,
                                       silence_logs=logging.ERROR, env={"MPLBACKEND": "Agg"})
-    _LIVE_CLUSTERS[cluster] = scratch
+    _LIVE_CLUSTERS.add(cluster)
     try:
         with cluster, Client(cluster, security=security) as c:
             groups = pinning.core_groups(n)
@@ -200,8 +215,7 @@ def _local_cluster(n: int, dashboard: str | None):
                 cluster.sync(cluster._correct_state)
             yield c, f"{n} local worker{'s' * (n != 1)}"
     finally:
-        _LIVE_CLUSTERS.pop(cluster, None)
-        shutil.rmtree(scratch, ignore_errors=True)
+        _LIVE_CLUSTERS.discard(cluster)
 
 
 def close_local_clusters(timeout: float = 5) -> None:
@@ -211,12 +225,13 @@ def close_local_clusters(timeout: float = 5) -> None:
     import signal
 
     logging.disable(logging.CRITICAL)  # the process ends: lost jobs and workers are expected
-    for cluster, scratch in list(_LIVE_CLUSTERS.items()):
+    for cluster in list(_LIVE_CLUSTERS):
         for nanny in list(getattr(cluster, "_created", ())):  # a fit does not stop soon
             with contextlib.suppress(Exception):
                 os.kill(nanny.process.process.pid, signal.SIGKILL)
         with contextlib.suppress(Exception):
             cluster.close(timeout=timeout)
+    for scratch in list(_SCRATCH):
         shutil.rmtree(scratch, ignore_errors=True)
 
 
