@@ -41,6 +41,8 @@ import tempfile
 import time
 import uuid
 
+from data_formats._atomic import writing
+
 from ..errors import BrdffitError
 from . import inputs, jobs, outdir as outdirs, table
 
@@ -176,8 +178,9 @@ def _local_cluster(n: int, dashboard: str | None):
     # The scheduler's and workers' scratch space (Dask's "temporary-directory", its lock files
     # included) lives in a folder of this batch's own, removed with the cluster: a worker
     # killed by a signal can leave no lock file in the shared temporary folder.
-    scratch = tempfile.mkdtemp(prefix="brdffit-dask-")
-    _SCRATCH.add(scratch)
+    with writing():  # a signal removes the folder only once it is registered
+        scratch = tempfile.mkdtemp(prefix="brdffit-dask-")
+        _SCRATCH.add(scratch)
     try:
         with _cluster_in(scratch, n, dashboard, security) as c:
             yield c
@@ -195,20 +198,23 @@ def _cluster_in(scratch: str, n: int, dashboard: str | None, security):
     from . import nohttp, pinning
 
     settings = {**LOCAL_SCHEDULER, "temporary-directory": scratch}
-    with dask.config.set(settings):
+    # The start makes files in ``scratch`` (lock files, the nodes' folders): it counts as a
+    # write in flight (data_formats._atomic.writing), so a signal's clean-up waits for it
+    # instead of racing it (files made just after the removal stayed behind).
+    with writing(), dask.config.set(settings):
         # Started without workers, so that a signal during their start finds the cluster
         # (close_local_clusters); the workers are added below.
         cluster = nohttp.QuietCluster(n_workers=0, threads_per_worker=1, processes=True,
                                       host="127.0.0.1", protocol="tls://", security=security,
                                       dashboard=bool(dashboard), dashboard_address=dashboard,
                                       silence_logs=logging.ERROR, env={"MPLBACKEND": "Agg"})
-    _LIVE_CLUSTERS.add(cluster)
+        _LIVE_CLUSTERS.add(cluster)
     try:
         with cluster, Client(cluster, security=security) as c:
-            groups = pinning.core_groups(n)
-            if n > 1 and groups:
-                c.register_plugin(pinning.PinCores(groups))
-            with dask.config.set(settings):  # the nannies take the settings as they start
+            with writing(), dask.config.set(settings):  # the nannies take the settings
+                groups = pinning.core_groups(n)
+                if n > 1 and groups:
+                    c.register_plugin(pinning.PinCores(groups))
                 for _ in range(n):  # what scale(n) does, but waiting and raising as
                     cluster.worker_spec.update(nohttp.quiet_workers(  # LocalCluster(n)
                         cluster.new_worker_spec()))
@@ -231,8 +237,29 @@ def close_local_clusters(timeout: float = 5) -> None:
                 os.kill(nanny.process.process.pid, signal.SIGKILL)
         with contextlib.suppress(Exception):
             cluster.close(timeout=timeout)
-    for scratch in list(_SCRATCH):
-        shutil.rmtree(scratch, ignore_errors=True)
+    if _SCRATCH:  # a worker still starting (not yet the cluster's) would write after the
+        _kill_children()  # removal: no child of this process but multiprocessing's tracker
+        for scratch in list(_SCRATCH):  # is left to write; the main thread may still be
+            for _ in range(10):  # closing the cluster it was starting: remove what it makes
+                shutil.rmtree(scratch, ignore_errors=True)
+                if not os.path.lexists(scratch):
+                    break
+                time.sleep(0.05)
+
+
+def _kill_children(timeout: float = 2) -> None:
+    """SIGKILL every child process of this one but multiprocessing's resource tracker (which
+    releases the semaphores of the dead), and wait for them at most ``timeout`` seconds."""
+    import psutil  # a dependency of distributed
+    from multiprocessing import resource_tracker
+
+    tracker = getattr(resource_tracker._resource_tracker, "_pid", None)
+    with contextlib.suppress(psutil.Error):
+        children = [c for c in psutil.Process().children(recursive=True) if c.pid != tracker]
+        for child in children:
+            with contextlib.suppress(psutil.Error):
+                child.kill()
+        psutil.wait_procs(children, timeout=timeout)
 
 
 @dataclasses.dataclass
