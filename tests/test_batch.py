@@ -252,7 +252,7 @@ def test_cli_end_to_end_exit_codes_and_summary(data, first, tmp_path, cache_home
     (["shiny.binary", "--model", "ggx", "--outdir", "o2", "--fix", "zz=1"], "'zz'"),
     (["shiny.binary", "--model", "ggx", "--outdir", "shiny.binary"], "not a folder"),
     (["shiny.binary", "--outdir", "o2"], "no model given"),
-    (["shiny.binary", "--model", "ggx", "--outdir", "o2", "--workers", "0"], "at least 1"),
+    (["shiny.binary", "--model", "ggx", "--outdir", "o2", "--workers", "0"], "from 1 to 256"),
     (["shiny.binary", "--model", "ggx", "--outdir", "o2", "--scheduler", "tcp://127.0.0.1:9"],
      "cannot reach the Dask scheduler at 'tcp://127.0.0.1:9'"),
 ])

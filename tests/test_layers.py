@@ -90,7 +90,10 @@ def layer(module: str) -> str | None:
         return "data_formats"
     if parts[0] != "brdffit" or module in BASE:
         return None
-    return {"terms": "terms", "models": "models", "cli": "cli"}.get(parts[1], "application")
+    # brdffit._program is the console script's first module: the command line's, outside the
+    # brdffit.cli package only so that its handlers are in place before that package imports.
+    return {"terms": "terms", "models": "models", "cli": "cli",
+            "_program": "cli"}.get(parts[1], "application")
 
 
 def violations(module: str, source: str, is_package: bool, lazy: dict[str, str]) -> list[str]:
