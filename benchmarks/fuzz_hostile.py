@@ -954,6 +954,28 @@ def _http(ip, port) -> bool:
         return False
 
 
+def open_doors(pids, seen: set) -> list[str]:
+    """Probe each port the processes ``pids`` listen on and ``seen`` lacks (then added): an HTTP
+    answer, or a Dask scheduler that runs a task for a client without credentials, is an open
+    door; returns what was found."""
+    found = []
+    for ip, port in _listening(pids):
+        if (ip, port) in seen:
+            continue
+        seen.add((ip, port))
+        host = "127.0.0.1" if ip in ("0.0.0.0", "::", "127.0.0.1") else ip
+        if _http(ip, port):
+            found.append(f"HTTP server on {ip}:{port}")
+            continue
+        r = subprocess.run([sys.executable, "-c", PROBE, f"tcp://{host}:{port}"],
+                           capture_output=True, text=True, timeout=30,
+                           env={**os.environ, "PYTHONPATH": str(ROOT)})
+        if "RAN 42" in r.stdout:
+            found.append(f"a Dask scheduler on {ip}:{port} ran a task for a client without "
+                         "credentials")
+    return found
+
+
 @category("open_door", 1)
 def open_door(rng, n, ctx, counts):
     """while a local batch runs: nobody without credentials may run a task; no HTTP server."""
@@ -973,20 +995,7 @@ def open_door(rng, n, ctx, counts):
                     tree = {p.pid, *(c.pid for c in psutil.Process(p.pid).children(True))}
                 except psutil.Error:
                     break
-                for ip, port in _listening(tree):
-                    if (ip, port) in seen:
-                        continue
-                    seen.add((ip, port))
-                    host = "127.0.0.1" if ip in ("0.0.0.0", "::", "127.0.0.1") else ip
-                    if _http(ip, port):
-                        found.append(f"HTTP server on {ip}:{port}")
-                        continue
-                    r = subprocess.run([sys.executable, "-c", PROBE, f"tcp://{host}:{port}"],
-                                       capture_output=True, text=True, timeout=30,
-                                       env={**os.environ, "PYTHONPATH": str(ROOT)})
-                    if "RAN 42" in r.stdout:
-                        found.append(f"a Dask scheduler on {ip}:{port} ran a task for a client "
-                                     "without credentials")
+                found += open_doors(tree, seen)
                 if found:
                     break
                 time.sleep(0.5)

@@ -543,7 +543,7 @@ def test_local_batch_cluster_is_closed_to_other_clients(tmp_path):
     import time
 
     psutil = pytest.importorskip("psutil")
-    from fuzz_hostile import PROBE, _http, _listening
+    from fuzz_hostile import open_doors
 
     for name in "abc":
         _write_samples(tmp_path / f"{name}.csv", np.random.default_rng(1).uniform(0, 1, (3000, 3)))
@@ -558,16 +558,7 @@ def test_local_batch_cluster_is_closed_to_other_clients(tmp_path):
                 tree = {p.pid, *(c.pid for c in psutil.Process(p.pid).children(True))}
             except psutil.Error:
                 break
-            for ip, port in set(_listening(tree)) - probed:
-                probed.add((ip, port))
-                if _http(ip, port):
-                    doors.append(f"HTTP on {port}")
-                    continue
-                r = subprocess.run([sys.executable, "-c", PROBE, f"tcp://127.0.0.1:{port}"],
-                                   capture_output=True, text=True, timeout=60,
-                                   env={**os.environ, "PYTHONPATH": str(ROOT)})
-                if "RAN 42" in r.stdout:
-                    doors.append(f"unauthenticated task ran on {port}")
+            doors += open_doors(tree, probed)
             time.sleep(0.2)
     finally:
         p.kill()

@@ -164,3 +164,6 @@ def test_a_batch_row_names_the_verdict_and_the_parameters_not_identified(cells):
     row = result_row(res)
     assert row["outcome"] == "degenerate" in OUTCOMES and row["not_identified"] == "alpha"
     assert row["success"] is False
+    from brdffit.fitting.outcome import DATA_VERDICTS
+
+    assert set(DATA_VERDICTS) <= set(OUTCOMES)  # the batch table spells them without JAX

@@ -28,6 +28,8 @@ from data_formats.samplelist import (
     MAX_LINE, MAX_SAMPLES, iter_samples, read_samples, write_samples,
 )
 
+from test_hostile import _one_line_error
+
 ROOT = Path(__file__).resolve().parent.parent
 HEADER = "theta_i,phi_i,theta_o,phi_o,r,g,b\n"
 
@@ -41,14 +43,6 @@ def _cli(*args, cwd, limit_as=None):
                 f"RLIMIT_AS, ({limit_as}, {limit_as})); os.execv(sys.argv[1], sys.argv[1:])",
                 *argv]
     return subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=600)
-
-
-def _one_line_error(err: str, *needles) -> None:
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert "Traceback" not in err and lines[0].startswith("brdffit")
-    for needle in needles:
-        assert needle in lines[0], lines[0]
 
 
 def _samples(n=400):

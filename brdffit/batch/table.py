@@ -30,9 +30,10 @@ BASE_COLUMNS = (
     "cost", "n_cells", "at_bound", "not_identified", "input", "checksum", "options", "brdffit_version", "worker",
     "result",
 )
+#: ``degenerate`` and ``implausible`` (:data:`brdffit.fitting.outcome.DATA_VERDICTS`, spelled
+#: here so that importing the batch package imports no JAX) are their own outcome; every other
+#: failed fit is ``not converged``.
 OUTCOMES = ("converged", "not converged", "degenerate", "implausible", "error", "worker died")
-#: Fit statuses that are their own outcome (every other failed fit is ``not converged``).
-_VERDICTS = ("degenerate", "implausible")
 #: The metric that ranks models of one material in the summary (the fitted loss's RMS residual).
 RANK_BY = "rmse"
 
@@ -53,7 +54,7 @@ def result_row(result) -> dict:
     row = {
         "success": bool(result.success),
         "outcome": ("converged" if result.success else result.status
-                    if result.status in _VERDICTS else "not converged"),
+                    if result.status in OUTCOMES else "not converged"),
         "message": str(result.message or ""),
         "steps": int(result.steps),
         "time": float(result.wall_time),

@@ -236,7 +236,9 @@ def run(args) -> int:
         sys.stdout.flush()  # a failed stdout publishes nothing
         outputs.publish()
     if not result.success:
-        what = (f"the fit is {result.status}" if result.status in ("degenerate", "implausible")
+        from ..fitting.outcome import DATA_VERDICTS
+
+        what = (f"the fit is {result.status}" if result.status in DATA_VERDICTS
                 else "the fit did not converge")
         print(f"brdffit fit: warning: {what} ({result.message}); outputs were written and "
               f"marked success=false", file=sys.stderr)

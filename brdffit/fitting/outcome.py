@@ -37,6 +37,9 @@ RESULT_NAMES = ("successful", "max_steps_reached", "singular", "breakdown", "sta
                 "conlim", "nonfinite_input", "nonlinear_max_steps_reached",
                 "nonlinear_divergence", "nonfinite")
 MAX_STEPS_HINT = " Increase `max_steps` or start elsewhere."
+#: The statuses that say the data cannot give a fit (not that the solver failed): the data
+#: determine nothing (``degenerate``) or are beyond any physical reflectance (``implausible``).
+DATA_VERDICTS = ("degenerate", "implausible")
 
 #: Data whose ``ρ cos θo`` (largest channel) exceeds this in more than half of the cells used are
 #: beyond any physical reflectance: ``∫ f_r cos θo dωo ≤ 1`` confines values above ``L`` to a
