@@ -236,7 +236,7 @@ def run(args) -> int:
         sys.stdout.flush()  # a failed stdout publishes nothing
         outputs.publish()
     if not result.success:
-        from ..fitting.outcome import DATA_VERDICTS
+        from ..fitting import DATA_VERDICTS
 
         what = (f"the fit is {result.status}" if result.status in DATA_VERDICTS
                 else "the fit did not converge")

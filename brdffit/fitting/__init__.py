@@ -10,8 +10,8 @@ listed may change without notice.
 * the fit: :func:`fit`, its options (:data:`FIT_DEFAULTS`, :func:`fit_options`,
   :class:`Settings`, :func:`tolerances`, :func:`default_precision`, :data:`WEIGHTINGS`) and its result
   (:class:`FitResult`, :class:`FittedModel`, :func:`json_safe`, :func:`value_with_error`,
-  and the errors of reading one back, :class:`ResultFormatError`,
-  :class:`ResultChoiceError`);
+  the statuses that say the data cannot give a fit (:data:`DATA_VERDICTS`), and the errors
+  of reading one back, :class:`ResultFormatError`, :class:`ResultChoiceError`);
 * the registries: losses (:data:`LOSSES`, :data:`DEFAULT_LOSS`, :func:`get_loss`,
   :class:`Loss`) and solvers (:data:`SOLVERS`, :data:`DEFAULT_SOLVER`);
 * the pieces another estimator of the same problem needs (the posterior sampler): the cells
@@ -24,6 +24,7 @@ listed may change without notice.
 from .data import WEIGHTINGS, FitData, Selection, Subsample, check_enough, select
 from .fitter import fit
 from .losses import DEFAULT_LOSS, LOSSES, Loss, get_loss
+from .outcome import DATA_VERDICTS
 from .options import FIT_DEFAULTS, Settings, default_precision, fit_options, tolerances
 from .parameters import Scalars, assign
 from .problem import Problem
@@ -33,6 +34,7 @@ from .solvers import DEFAULT_SOLVER, SOLVERS
 from .start import Features, measure
 
 __all__ = [
+    "DATA_VERDICTS",
     "DEFAULT_LOSS",
     "DEFAULT_SOLVER",
     "FIT_DEFAULTS",
