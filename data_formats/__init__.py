@@ -47,3 +47,6 @@ __all__ = [
 from .samplelist import SampleListFormatError, read_samples, write_samples  # noqa: E402
 
 __all__ += ["SampleListFormatError", "read_samples", "write_samples"]
+from .tensorfile import TensorFileError, read_tensor_file, write_tensor_file  # noqa: E402
+
+__all__ += ["TensorFileError", "read_tensor_file", "write_tensor_file"]
