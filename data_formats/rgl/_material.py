@@ -259,8 +259,9 @@ class RGLMaterial:
         (:meth:`to_samples` says which measure and why)."""
         n = self.resolution
         phi, theta = (a.ravel() for a in self.incidence_nodes())
-        cell_i = np.repeat(_incidence_cells(self.theta_i, self.phi_i, self.isotropic).ravel(),
-                           n * n)
+        cells, width = _incidence_cells(self.theta_i, self.phi_i, self.isotropic)
+        cell_i = np.repeat(cells.ravel(), n * n)
+        radius_i = np.repeat(np.broadcast_to(width / 2, cells.shape).ravel(), n * n)
         # Sample-square cells (trapezoid: half at the edges) mapped through the warp to ωo.
         side = np.full(n, 1.0 / (n - 1))
         side[[0, -1]] *= 0.5
@@ -272,12 +273,14 @@ class RGLMaterial:
                          1e-12) * 4.0 * cos_im
         cell_o = area * jac / np.maximum(vndf_pdf, 1e-300)
         # Solid angle -> angles: dωi dωo = 4 cos θd sin θh sin θd dθh dφh dθd dφd, with each
-        # sine floored at the cell's own angular radius (a cell on the pole has a finite share).
+        # factor floored at about the cell's own angular radius (a cell on a pole of the change
+        # of variables has a finite share, not the pointwise Jacobian's).
         sin_h = np.sqrt(np.clip(1 - wm[:, 2]**2, 0, 1))
         sin_d = np.sqrt(np.clip(1 - cos_im**2, 0, 1))
         sin_h = np.maximum(sin_h, 0.5 * np.sqrt(cell_o / (4 * cos_im) / np.pi))
-        sin_d = np.maximum(sin_d, 0.5 * np.sqrt(cell_i / np.pi))
-        w = cell_i * cell_o / (4 * cos_im * sin_h * sin_d)
+        sin_d = np.maximum(sin_d, 0.5 * radius_i)
+        cos_d = np.maximum(cos_im, 0.5 * radius_i)
+        w = cell_i * cell_o / (4 * cos_d * sin_h * sin_d)
         w = np.where(valid & np.isfinite(w), w, 0.0)
         mean = w[valid].mean() if valid.any() else 1.0
         return w / mean if mean > 0 else np.where(valid, 1.0, 0.0)
@@ -313,7 +316,8 @@ class RGLMaterial:
 
 def _incidence_cells(theta_i, phi_i, isotropic):
     """``(n_φ, n_θ)`` solid angle of each incidence slice: θ from midpoint to midpoint (the
-    first from 0 when ``θ0 = 0``), φ over the slice's share of its range (2π when isotropic)."""
+    first from 0 when ``θ0 = 0``), φ over the slice's share of its range (2π when isotropic);
+    and ``(n_θ,)`` the width in θ of each band."""
     t = theta_i.astype(np.float64)
     mids = 0.5 * (t[1:] + t[:-1])
     lo = np.concatenate([[max(0.0, t[0] - (mids[0] - t[0]) if len(t) > 1 else 0.0)], mids])
@@ -326,5 +330,5 @@ def _incidence_cells(theta_i, phi_i, isotropic):
         p = phi_i.astype(np.float64)
         edges = np.concatenate([[p[0]], 0.5 * (p[1:] + p[:-1]), [p[-1]]])
         dphi = np.diff(edges)
-    return np.outer(dphi, band)
+    return np.outer(dphi, band), hi - lo
 
