@@ -165,14 +165,19 @@ class Marginal2D:
             raise ValueError(f"Marginal2D: points must have shape (N, 2), got {pts.shape}")
         return pts, self._corners(params, len(pts))
 
-    def sample(self, points, params=()):
-        """``Marginal2D::sample_continuous``: uniform ``(N, 2)`` -> ``(positions, pdf)``."""
+    def sample(self, points, params=(), *, guard: bool = True):
+        """``Marginal2D::sample_continuous``: uniform ``(N, 2)`` -> ``(positions, pdf)``.
+
+        ``guard=False`` skips Mitsuba's clamp of the input to ``[ε, 1-ε]``, so that the edges
+        of the square map exactly onto the edges (the tables' own nodes, :mod:`._material`).
+        """
         if self.cond is None:
             raise ValueError("Marginal2D.sample: built with enable_sampling=False")
         u, corners = self._prepare(points, params)
         w, h, n = self.w, self.h, len(u)
-        x = np.clip(u[:, 0], _EPS, _ONE_MINUS_EPS)
-        y = np.clip(u[:, 1], _EPS, _ONE_MINUS_EPS)
+        lo, hi = (_EPS, _ONE_MINUS_EPS) if guard else (0.0, 1.0)
+        x = np.clip(u[:, 0], lo, hi)
+        y = np.clip(u[:, 1], lo, hi)
         marg = self._lookup(self.marg, corners, np.broadcast_to(np.arange(h - 1), (n, h - 1)))
         if not self.normalized:
             y = y * marg[:, -1]

@@ -218,18 +218,34 @@ class RGLMaterial:
         return np.meshgrid(self.phi_i.astype(np.float64), self.theta_i.astype(np.float64),
                            indexing="ij")
 
+    def node_half_vectors(self, nodes, phi, theta):
+        """``(u_m, ωm)`` of nodes of the warped square for incidences ``(φi, θi)`` (N each).
+
+        ``u_m`` is the VNDF warp of the node (Mitsuba's ``sample``) without the warp's clamp
+        of its input to ``[ε, 1-ε]``: the square's edges map exactly onto the edges, so the
+        two edges ``u_φ = 0`` and ``u_φ = 1`` (both the azimuth ``±π``) give the same pairs and
+        table rows, as they must (with the clamp they differed by 1e-3 where the table is
+        steep), and the edge ``u_θ = 0`` is the normal itself.
+        """
+        seam = nodes[:, 1] == 1.0  # sampled as u_φ = 0 (the CDF's rounding would overshoot 1)
+        u_m, _ = self._warps_geometry["vndf"].sample(
+            np.where(seam[:, None], nodes * [1.0, 0.0], nodes), [phi, theta], guard=False)
+        u_m[:, 1] = np.where(seam, 1.0, u_m[:, 1])
+        phi_m = u2phi(u_m[:, 1]) + (phi if self.isotropic else 0.0)
+        return u_m, spherical(u2theta(u_m[:, 0]), phi_m)
+
     def pattern(self):
         """The file's own measurement pattern: ``(wi, wo, wm, u_m, value, valid, node)``.
 
         For every ``(φi, θi)`` slice and every node ``(x_k, y_j) = (k, j) / (n-1)`` of the
         reflectance table, ``u_m`` is the VNDF warp of the node (``Marginal2D.sample`` with the
-        slice's parameters, as Mitsuba's ``sample`` maps it), ``ωm`` its direction (azimuth
-        relative to ``φi`` when isotropic) and ``ωo = 2(ωi·ωm)ωm - ωi``. ``value`` is the node's
+        slice's parameters, as Mitsuba's ``sample`` maps it; :meth:`node_half_vectors`), ``ωm``
+        its direction (azimuth relative to ``φi`` when isotropic) and ``ωo = 2(ωi·ωm)ωm - ωi``. ``value`` is the node's
         ``f_r`` (the table value times ``D/(4σ)`` when ``jacobian``, divided by ``cos θo``);
         ``valid`` is false below the horizon and where the file's ``valid`` marks the node.
         Arrays are flat over ``(n_φ, n_θ, n, n)``.
         """
-        n, warps = self.resolution, self._warps
+        n, warps = self.resolution, self._warps_geometry
         phi, theta = (a.ravel() for a in self.incidence_nodes())
         grid = np.linspace(0.0, 1.0, n)
         gx, gy = np.meshgrid(grid, grid)  # [j, k] = (x_k, y_j)
@@ -238,9 +254,7 @@ class RGLMaterial:
         phi_r = np.repeat(phi, n * n)
         theta_r = np.repeat(theta, n * n)
         pts = np.tile(nodes, (n_slice, 1))
-        u_m, _ = warps["vndf"].sample(pts, [phi_r, theta_r])
-        phi_m = u2phi(u_m[:, 1]) + (phi_r if self.isotropic else 0.0)
-        wm = spherical(u2theta(u_m[:, 0]), phi_m)
+        u_m, wm = self.node_half_vectors(pts, phi_r, theta_r)
         wi = spherical(theta_r, phi_r)
         wo = 2.0 * np.sum(wi * wm, axis=1, keepdims=True) * wm - wi
         table = self.rgb_table.reshape(n_slice, 3, n * n).transpose(0, 2, 1).reshape(-1, 3)
@@ -254,7 +268,7 @@ class RGLMaterial:
         value = np.where(valid[:, None], value / np.where(valid, wo[:, 2], 1.0)[:, None], 0.0)
         return wi, wo, wm, u_m, value, valid, pts
 
-    def pair_weights(self, wi, wo, wm, u_m, pts, valid):
+    def pair_weights(self, wi, wm, pts, valid):
         """Each pair's share of the Rusinkiewicz angle domain, mean 1 over valid pairs
         (:meth:`to_samples` says which measure and why)."""
         n = self.resolution
@@ -262,16 +276,21 @@ class RGLMaterial:
         cells, width = _incidence_cells(self.theta_i, self.phi_i, self.isotropic)
         cell_i = np.repeat(cells.ravel(), n * n)
         radius_i = np.repeat(np.broadcast_to(width / 2, cells.shape).ravel(), n * n)
-        # Sample-square cells (trapezoid: half at the edges) mapped through the warp to ωo.
+        # Sample-square cells (trapezoid: half at the edges) mapped through the warp to ωo,
+        # with the density taken at each cell's centre (on the edge u_θ = 0 the pointwise
+        # Jacobian of a node vanishes, not its cell).
+        h = 0.25 / (n - 1)
         side = np.full(n, 1.0 / (n - 1))
         side[[0, -1]] *= 0.5
         area = np.tile(np.outer(side, side).ravel(), len(phi))
-        _, vndf_pdf = self._warps["vndf"].invert(u_m, [np.repeat(phi, n * n),
-                                                        np.repeat(theta, n * n)])
+        centre = pts + np.where(pts == 0.0, h, np.where(pts == 1.0, -h, 0.0))
+        phi_r, theta_r = np.repeat(phi, n * n), np.repeat(theta, n * n)
+        u_c, wm_c = self.node_half_vectors(centre, phi_r, theta_r)
+        pdf_c = self._warps_geometry["vndf"].eval(u_c, [phi_r, theta_r])
+        jac = (2 * np.pi**2 * u_c[:, 0] * np.sqrt(np.clip(1 - wm_c[:, 2]**2, 0, 1))
+               * 4.0 * np.clip(np.sum(wi * wm_c, axis=1), 0.0, None))
+        cell_o = area * jac / np.maximum(pdf_c, 1e-300)
         cos_im = np.clip(np.sum(wi * wm, axis=1), 1e-12, None)
-        jac = np.maximum(2 * np.pi**2 * u_m[:, 0] * np.sqrt(np.clip(1 - wm[:, 2]**2, 0, 1)),
-                         1e-12) * 4.0 * cos_im
-        cell_o = area * jac / np.maximum(vndf_pdf, 1e-300)
         # Solid angle -> angles: dωi dωo = 4 cos θd sin θh sin θd dθh dφh dθd dφd, with each
         # factor floored at about the cell's own angular radius (a cell on a pole of the change
         # of variables has a finite share, not the pointwise Jacobian's).
@@ -309,7 +328,7 @@ class RGLMaterial:
         ``θh`` or ``θd`` gets the finite share of its cell. ``weights=False`` gives ``None``.
         """
         wi, wo, wm, u_m, value, valid, pts = self.pattern()
-        weight = self.pair_weights(wi, wo, wm, u_m, pts, valid) if weights else None
+        weight = self.pair_weights(wi, wm, pts, valid) if weights else None
         return SampleSet(wi=wi, wo=wo, rgb=value, valid=valid, name=self.name, path=self.path,
                          weight=weight)
 

@@ -128,8 +128,7 @@ def _reflectance(brdf, mat, n, jacobian):
     for p, phi in enumerate(mat.phi_i.astype(np.float64)):
         for t, theta in enumerate(mat.theta_i.astype(np.float64)):
             params = [np.full(n * n, phi), np.full(n * n, theta)]
-            u_m, _ = warps["vndf"].sample(nodes, params)
-            wm = spherical(u2theta(u_m[:, 0]), u2phi(u_m[:, 1]) + (phi if mat.isotropic else 0))
+            u_m, wm = mat.node_half_vectors(nodes, *params)
             wi = np.broadcast_to(spherical(theta, phi), wm.shape)
             wo = 2.0 * np.sum(wi * wm, axis=1, keepdims=True) * wm - wi
             ok = (wo[:, 2] > 0) & (wi[:, 2] > 0)
