@@ -173,28 +173,37 @@ class RGLMaterial:
     def eval(self, wi, wo) -> np.ndarray:
         """``f_r(ωi, ωo)`` ``(N, 3)`` float64 in 1/sr (no cosine), exactly as Mitsuba 3's
         ``measured`` plugin evaluates it (module docstring) divided by ``cos θo``; 0 below the
-        horizon. ``wi``, ``wo``: ``(N, 3)`` unit vectors in the shading frame (z the normal)."""
+        horizon. ``wi``, ``wo``: ``(N, 3)`` unit vectors in the shading frame (z the normal).
+        A spectral file gives the linear sRGB of its spectra (:mod:`._spectral`)."""
+        return self._evaluate(wi, wo, None)
+
+    def eval_spectrum(self, wi, wo, wavelengths) -> np.ndarray:
+        """``f_r`` ``(N, k)`` of a spectral file at the wavelengths ``(k,)`` nm (or ``(N, k)``),
+        as Mitsuba's spectral variants evaluate it (the ``spectra`` table interpolated in the
+        wavelength, weights clamped at the ends)."""
+        if self.spectra is None:
+            raise ValueError("RGLMaterial.eval_spectrum: an RGB file has no spectra; use eval")
+        return self._evaluate(wi, wo, np.asarray(wavelengths, dtype=np.float64))
+
+    def _evaluate(self, wi, wo, wavelengths):
         wi = np.asarray(wi, dtype=np.float64)
         wo = np.asarray(wo, dtype=np.float64)
         if wi.shape != wo.shape or wi.ndim != 2 or wi.shape[1] != 3:
             raise ValueError(f"RGLMaterial.eval: wi and wo must both be (N, 3), got {wi.shape} "
                              f"and {wo.shape}")
-        out = np.zeros((len(wi), 3))
+        k = 3 if wavelengths is None else wavelengths.shape[-1]
+        if wavelengths is not None:
+            wavelengths = np.broadcast_to(wavelengths, (len(wi), k))
+        out = np.zeros((len(wi), k))
         for start in range(0, len(wi), _CHUNK):
             sl = slice(start, start + _CHUNK)
-            out[sl] = self._eval_chunk(wi[sl], wo[sl])
+            out[sl] = self._eval_chunk(wi[sl], wo[sl],
+                                       None if wavelengths is None else wavelengths[sl])
         return out
 
-    def _eval_chunk(self, wi, wo):
+    def _eval_chunk(self, wi, wo, wavelengths):
         active = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-        wi, wo = wi.copy(), wo.copy()
-        red = self.reduction
-        if red >= 2:
-            sy = wi[:, 1].copy()
-            sx = wi[:, 0].copy() if red == 4 else sy
-            for v in (wi, wo):
-                v[:, 0] = _mulsign_neg(v[:, 0], sx)
-                v[:, 1] = _mulsign_neg(v[:, 1], sy)
+        wi, wo = self._reduce(wi, wo)
         m = wi + wo
         m /= np.linalg.norm(m, axis=1, keepdims=True)
         theta_i, phi_i = elevation(wi), np.arctan2(wi[:, 1], wi[:, 0])
@@ -204,13 +213,24 @@ class RGLMaterial:
                        axis=1)
         u_m[:, 1] -= np.floor(u_m[:, 1])
         u_m = np.nan_to_num(u_m)  # inactive pairs (wo = -wi) only
-        warps, params = self._warps, [phi_i, theta_i]
-        sample, _ = warps["vndf"].invert(u_m, params)
-        spec = np.stack([w.eval(sample, params) for w in warps["rgb"]], axis=1)
+        params = [phi_i, theta_i]
+        geometry = self._warps_geometry
+        sample, _ = geometry["vndf"].invert(u_m, params)
+        if wavelengths is None:
+            spec = np.stack([w.eval(sample, params) for w in self._warps["rgb"]], axis=1)
+        else:
+            spec = np.stack([self._warp_spectra.eval(sample, params + [wavelengths[:, c]])
+                             for c in range(wavelengths.shape[1])], axis=1)
         if self.jacobian:
-            spec *= (warps["ndf"].eval(u_m) / (4.0 * warps["sigma"].eval(u_wi)))[:, None]
+            spec *= (geometry["ndf"].eval(u_m) / (4.0 * geometry["sigma"].eval(u_wi)))[:, None]
         cos_o = np.where(active, wo[:, 2], 1.0)
         return np.where(active[:, None], spec / cos_o[:, None], 0.0)
+
+    @functools.cached_property
+    def _warp_spectra(self):
+        """Mitsuba's ``Warp2D3`` on ``spectra``: parameters ``(φi, θi, λ)``."""
+        return Marginal2D(self.spectra, [self.phi_i, self.theta_i, self.wavelengths],
+                          normalize=False, enable_sampling=False)
 
     # -- the measurement pattern -----------------------------------------------------------------
 
