@@ -391,3 +391,34 @@ def test_synthesize_refuses_a_model_that_is_not_finite():
 
     with pytest.raises(ValueError, match="non-finite"):
         synthesize_rgl(bad, n_theta_i=3, resolution=4, vndf_shape=(4, 4))
+
+
+# -- spectral files --------------------------------------------------------------------------------
+
+def spectral_version(mat, n_wl=12, seed=4):
+    """``mat`` with its green table times a random positive spectrum per wavelength."""
+    rng = np.random.default_rng(seed)
+    wl = np.linspace(360, 1000, n_wl).astype(np.float32)
+    curve = rng.uniform(0.2, 1.0, n_wl).astype(np.float32)
+    spectra = mat.rgb[:, :, 1:2] * curve[None, None, :, None, None]
+    return RGLMaterial(theta_i=mat.theta_i, phi_i=mat.phi_i, ndf=mat.ndf, sigma=mat.sigma,
+                       vndf=mat.vndf, luminance=mat.luminance, spectra=spectra, wavelengths=wl,
+                       jacobian=mat.jacobian, description="spectral", name="spectral"), curve
+
+
+def test_spectral_files_round_trip_and_evaluate_as_their_rgb(small_file, tmp_path):
+    from data_formats.rgl import spectra_to_rgb
+
+    np.testing.assert_allclose(spectra_to_rgb([360.0, 830.0], [1.0, 1.0]), 1.0, atol=2e-4)
+    assert np.allclose(spectra_to_rgb([500.0, 600.0], [1.0, 1.0]), 1.0, atol=2e-4)  # held flat
+    mat, curve = spectral_version(read_rgl(small_file))
+    write_rgl(tmp_path / "s.bsdf", mat)
+    back = read_rgl(tmp_path / "s.bsdf")
+    assert back.rgb is None and back.wavelengths.shape == (12,)
+    np.testing.assert_array_equal(back.spectra, mat.spectra)
+    wi, wo = random_pairs(3000, 2)
+    rgb = spectra_to_rgb(back.wavelengths, curve)
+    green = read_rgl(small_file).eval(wi, wo)[:, 1:2]
+    np.testing.assert_allclose(back.eval(wi, wo), green * rgb, rtol=1e-5, atol=1e-9)
+    at = back.eval_spectrum(wi, wo, back.wavelengths[[0, 5]])
+    np.testing.assert_allclose(at, green * curve[[0, 5]], rtol=1e-5, atol=1e-9)
