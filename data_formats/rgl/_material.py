@@ -354,16 +354,19 @@ class RGLMaterial:
         cell_o = area * 2 * np.pi**2 * u_m[:, 0] * sin_h * 4 * cos_im / np.maximum(pdf, 1e-300)
         return cell_i * cell_o / (4 * cos_im * sin_h * sin_d)
 
-    def pair_weights(self, wi, wm, pts, valid, *, count: int | None = None, min_hits: int = 8):
+    def pair_weights(self, wi, wm, pts, valid, *, count: int | None = None, min_hits: int = 6):
         """Each pair's share of the Rusinkiewicz angle domain, mean 1 over valid pairs
         (:meth:`to_samples` says which measure and why). ``count``: Monte Carlo points,
-        default 32 per pair within ``[2^20, 2^23]``."""
+        default 16 per pair within ``[2^20, 2^22]``."""
         if count is None:
-            count = int(np.clip(32 * len(wi), 1 << 20, 1 << 23))
+            count = int(np.clip(16 * len(wi), 1 << 20, 1 << 22))
         volume, hits = self._monte_carlo_shares(count)
         small = hits < min_hits
         if small.any():
-            point = self._pointwise_shares(wi, wm, pts)
+            # A cell hit fewer than min_hits times is almost surely smaller than this many
+            # hits' volume: the cap removes the pointwise estimate's excursions near its poles.
+            cap = (min_hits + 3 * np.sqrt(min_hits)) * np.pi**4 / count
+            point = np.minimum(self._pointwise_shares(wi, wm, pts), cap)
             volume = np.where(small & np.isfinite(point), point, volume)
         w = np.where(valid, volume, 0.0)
         mean = w[valid].mean() if valid.any() else 1.0
@@ -387,11 +390,12 @@ class RGLMaterial:
         would fit the peak and neglect the rest of the lobe (and the grazing slices).
 
         The share is measured, not modelled: a deterministic low-discrepancy sequence (Roberts'
-        R4, ``count`` points, 32 per pair by default) uniform in the four angles is mapped to
+        R4, ``count`` points, 16 per pair by default) uniform in the four angles is mapped to
         direction pairs, each is assigned to the pair that :meth:`eval` would read it from
         (nearest ``θi``/``φi`` slice, nearest node of the warped square after the VNDF
         inverse), and a pair's share is its count. Cells hit fewer than ``min_hits`` times
-        (the small cells of the peak) take the share of their own Jacobians instead: incidence
+        (the small cells of the peak) take the share of their own Jacobians instead (capped at
+        the volume of ``min_hits + 3 sqrt(min_hits)`` hits): incidence
         solid angle times outgoing solid angle (node area on the square over the density of
         ``ωo``, ``vndf_pdf / (2π² u_θ sin θm · 4 ωi·ωm)``, Mitsuba's ``pdf`` without the
         luminance), over ``4 cos θd sin θh sin θd`` (solid angles to angles); for cells with
