@@ -321,8 +321,9 @@ SYNTH = {"iso": (ggx_iso, dict(isotropic=True)),
                                    vndf_shape=(24, 24), resolution=24))}
 #: (median, 99th percentile) of |f_file - f_model| / (f_model + 1e-3) for θi, θo < 70°, measured
 #: at these resolutions (iso: 10 θi x 32 x 32; aniso: 8 θi x 13 φi x 24 x 24): 0.005, 0.054 and
-#: 0.012, 0.25. The largest errors are where the tables change fastest between nodes: near the
-#: x = 0 edge of the warped square at grazing θi, and (aniso) between the φi slices, 30° apart.
+#: 0.012, 0.25. The largest errors are in and near the specular peak (θh < 15°), where the table
+#: on the warped square changes fastest, between θi slices, and (aniso) between the φi slices,
+#: 30° apart (``data_formats.rgl._synthesize`` has the figures at the default resolutions).
 BOUNDS = {"iso": (0.008, 0.07), "aniso": (0.02, 0.35)}
 
 

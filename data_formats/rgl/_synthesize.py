@@ -23,7 +23,17 @@ each table means:
    ``valid = 0``) where ``ωo`` is below the horizon. ``luminance`` is its luminance.
 
 Between nodes the file interpolates (bilinearly on the warped square, linearly in ``θi``, ``φi``):
-:meth:`RGLMaterial.eval` of the result reproduces ``brdf`` to within that interpolation error.
+:meth:`RGLMaterial.eval` of the result reproduces ``brdf`` at the nodes to float32 (1e-5) and
+elsewhere to within that interpolation error. Measured (``benchmarks/bench_rgl.py``, GGX with
+diffuse, 1M random pairs, ``θi, θo < 70°``, error ``|f_file - f| / (f + 1e-3)``): isotropic
+``α = 0.3`` at the defaults (10 ``θi`` slices, 32 x 32 tables): median 0.004, 99th percentile
+0.056, max 0.55; anisotropic ``α = (0.15, 0.4)`` with 13 ``φi`` slices: median 0.012, p99 0.26,
+max 3.7. The error is largest in and near the specular peak (isotropic, ``θh < 15°``: p99 0.27-0.29
+against 0.01-0.04 elsewhere), where the table on the warped square changes fastest (towards its
+``u_θ = 0`` edge), and grows between ``θi`` slices (median 0.002 on a slice, 0.005 midway) and,
+anisotropic, between the ``φi`` slices (30° apart). Near the horizon the tables interpolate
+towards the zeros stored below it: ``f_r cos θo`` is then off by up to a few 1e-3 absolute, which
+``f_r`` magnifies by ``1 / cos θo``.
 """
 
 from __future__ import annotations
