@@ -44,8 +44,9 @@ MAX_FIELDS = 1024
 MAX_NDIM = 16
 #: The header (magic to the last field's shape) may be at most this long.
 MAX_HEADER_BYTES = 1 << 20
-#: Largest file the reader accepts (the largest spectral RGL files are ~100 MB).
-MAX_FILE_BYTES = 4 << 30
+#: Largest file the reader accepts, 1 GiB (RGL files are a few MB, spectral ones up to a few
+#: hundred; an evaluation keeps float64 copies of the tables, about twice the file).
+MAX_FILE_BYTES = 1 << 30
 _PREFIX = struct.Struct("<12sBBI")
 
 

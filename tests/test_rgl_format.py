@@ -423,3 +423,14 @@ def test_spectral_files_round_trip_and_evaluate_as_their_rgb(small_file, tmp_pat
     np.testing.assert_allclose(back.eval(wi, wo), green * rgb, rtol=1e-5, atol=1e-9)
     at = back.eval_spectrum(wi, wo, back.wavelengths[[0, 5]])
     np.testing.assert_allclose(at, green * curve[[0, 5]], rtol=1e-5, atol=1e-9)
+
+
+def test_a_file_beyond_the_size_limit_is_refused_before_reading(tmp_path, monkeypatch):
+    import data_formats.tensorfile as tf
+
+    path = tmp_path / "big.tensor"
+    path.write_bytes(raw_tensor_file(FIELDS))
+    monkeypatch.setattr(tf, "MAX_FILE_BYTES", 64)
+    with pytest.raises(TensorFileError) as exc:
+        read_tensor_file(path)
+    _one_line(exc, path, "exceeds the reader's limit")
