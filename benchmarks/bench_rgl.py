@@ -10,8 +10,8 @@ resolutions of the RGL database's files (isotropic: 1 x 10 slices, anisotropic: 
 times, ``RGLMaterial.eval`` on ``--pairs`` random direction pairs (best of ``--repeat``, wall and
 CPU), ``to_samples``; the agreement with the source model (median, 99th percentile and maximum of
 ``|f_file - f_model| / (f_model + 1e-3)`` for ``θi, θo < 70°``, where the largest error lies,
-and the same in ``f cos θo`` over the whole hemisphere); and, when Mitsuba 3 is importable, the largest relative
-difference from Mitsuba's ``measured`` plugin (``scalar_rgb``, ``--mitsuba`` pairs, its
+and the same in ``f cos θo`` over the whole hemisphere); and, when Mitsuba 3 is importable,
+the largest relative difference from Mitsuba's ``measured`` plugin (``scalar_rgb``, ``--mitsuba`` pairs, its
 ``eval`` divided by ``cos θo``). The models are plain NumPy here (benchmarks do not import the
 tests). Goals: none; the figures are for the record.
 """

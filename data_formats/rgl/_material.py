@@ -261,8 +261,8 @@ class RGLMaterial:
         For every ``(φi, θi)`` slice and every node ``(x_k, y_j) = (k, j) / (n-1)`` of the
         reflectance table, ``u_m`` is the VNDF warp of the node (``Marginal2D.sample`` with the
         slice's parameters, as Mitsuba's ``sample`` maps it; :meth:`node_half_vectors`), ``ωm``
-        its direction (azimuth relative to ``φi`` when isotropic) and ``ωo = 2(ωi·ωm)ωm - ωi``. ``value`` is the node's
-        ``f_r`` (the table value times ``D/(4σ)`` when ``jacobian``, divided by ``cos θo``);
+        its direction (azimuth relative to ``φi`` when isotropic) and ``ωo = 2(ωi·ωm)ωm - ωi``.
+        ``value`` is the node's ``f_r`` (the table value times ``D/(4σ)`` when ``jacobian``, divided by ``cos θo``);
         ``valid`` is false below the horizon and where the file's ``valid`` marks the node.
         Arrays are flat over ``(n_φ, n_θ, n, n)``.
         """

@@ -8,15 +8,16 @@ therefore
 
 .. math::
 
-    \\mathrm{RGB} = M_{XYZ \\to sRGB} \\frac{\\int S(\\lambda) E(\\lambda) \\bar{\\mathbf{x}}(\\lambda)
-    \\, d\\lambda}{\\int E(\\lambda) \\bar y(\\lambda) \\, d\\lambda}
+    \\mathrm{RGB} = M_{XYZ \\to sRGB} \\frac{\\int S(\\lambda) E(\\lambda)
+    \\bar{\\mathbf{x}}(\\lambda) \\, d\\lambda}{\\int E(\\lambda) \\bar y(\\lambda) \\, d\\lambda}
 
 with ``E`` the CIE D65 illuminant (the white of sRGB, so a perfect white reflector gives
 ``(1, 1, 1)``), the integral over Mitsuba's CIE range 360-830 nm, ``S`` interpolated linearly
 between the file's wavelengths and held constant beyond its ends (Mitsuba's ``Warp2D3``
 interpolation in the wavelength parameter, weights clamped), and ``M`` the sRGB matrix (IEC
 61966-2-1, Mitsuba's ``xyz_to_srgb``). This is Mitsuba's ``spectrum_list_to_srgb(..., d65=True,
-bounded=False)`` up to its quadrature and without its clamp of negative (out-of-gamut) values.
+bounded=False)`` up to its quadrature and without its clamp of negative (out-of-gamut) values
+(and it counts a spectrum as 0 outside its wavelengths, where the BSDF holds the end values).
 The reduction is linear, so :class:`~data_formats.rgl.RGLMaterial` applies it to the tables once
 (interpolation commutes with it).
 
