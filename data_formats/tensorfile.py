@@ -1,8 +1,8 @@
 """Mitsuba's tensor file: named n-dimensional arrays in one binary file (read, write).
 
 The container of the RGL material database (``.bsdf``, Dupuy & Jakob 2018) and of other
-Mitsuba data (``include/mitsuba/core/tensor.h``, ``src/libcore/tensor.cpp``,
-``python/mitsuba/tensor_io.py`` of Mitsuba 3). All integers are little-endian:
+Mitsuba data (``include/mitsuba/core/tensor.h`` and ``mitsuba/python/tensor_io.py`` of
+Mitsuba 3). All integers are little-endian:
 
 * 12 bytes ``b"tensor_file\\0"``; 2 bytes version ``uint8`` major, minor = ``1, 0``;
   ``uint32`` field count.

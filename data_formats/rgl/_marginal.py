@@ -3,7 +3,7 @@
 Source: ``include/mitsuba/core/distr_2d.h`` (classes ``Distribution2D`` and ``Marginal2D``) and
 ``include/mitsuba/core/warp.h`` of Mitsuba 3; the warp is the "marginal" construction used by the
 RGL material model (Dupuy & Jakob 2018, "An Adaptive Parameterization for Efficient Material
-Acquisition and Rendering", ACM TOG 37(6), §5).
+Acquisition and Rendering", ACM TOG 37(6)).
 
 The density is the bilinear interpolant of a ``H x W`` grid of values on the unit square
 (``x`` along the last, contiguous axis), node ``(i, j)`` at ``(j/(W-1), i/(H-1))``, optionally

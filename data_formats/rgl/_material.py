@@ -1,7 +1,7 @@
 """The RGL material in memory: its fields, evaluation exactly as Mitsuba 3 renders it, and samples.
 
 Model (Dupuy & Jakob 2018, "An Adaptive Parameterization for Efficient Material Acquisition and
-Rendering", ACM TOG 37(6), §4-6; Mitsuba 3 ``src/bsdfs/measured.cpp``). Angles map to the unit
+Rendering", ACM TOG 37(6); Mitsuba 3 ``src/bsdfs/measured.cpp``). Angles map to the unit
 square by ``u_θ = sqrt(2θ/π)``, ``u_φ = (φ + π) / 2π`` (``theta2u``, ``phi2u``). For incidence
 ``ωi = (θi, φi)`` and half vector ``ωm = normalize(ωi + ωo)`` (``elevation`` is the stable
 ``2 asin(|ω - z| / 2)``):
@@ -13,13 +13,16 @@ square by ``u_θ = sqrt(2θ/π)``, ``u_φ = (φ + π) / 2π`` (``theta2u``, ``ph
   Jacobian ``2π² u_θ sin θm`` of the square), interpolated in the parameters ``(φi, θi)``;
 * ``f_r cos θo = R(s; φi, θi) · D(u_m) / (4 σ(u_wi))`` where ``R`` is the bilinear interpolant of
   the ``rgb`` table on the warped square (``s``), ``D`` of ``ndf`` and ``σ`` (projected area) of
-  ``sigma``; the factor ``D/(4σ)`` only when ``jacobian`` is set (paper eq. 12: the tables store
+  ``sigma``; the factor ``D/(4σ)`` only when ``jacobian`` is set (the paper's parameterization: the tables store
   ``f_r cos θo`` divided by the VNDF-to-``ωo`` density, which is smooth).
 
 Anisotropic files may store a reduced range of ``φi``: ``reduction = rint(2π / (φi[-1] - φi[0]))``
 (1, 2 or 4); with 2 the pair is rotated by π so that ``ωi.y ≤ 0``, with 4 mirrored in x and y
-so that ``ωi.x, ωi.y ≤ 0`` (``mulsign_neg``). Below the horizon (``cos θi ≤ 0`` or
-``cos θo ≤ 0``) the value is 0. Mitsuba's ``eval`` returns ``f_r cos θo``; :meth:`RGLMaterial.eval`
+so that ``ωi.x, ωi.y ≤ 0`` (``mulsign_neg``). For an isotropic file Mitsuba 3.9 leaves
+``m_reduction`` uninitialized, so it may apply either fold; both keep the relative azimuth's
+magnitude, and the tables :func:`~data_formats.rgl.synthesize_rgl` writes are symmetric in it, so
+Mitsuba's value does not depend on the fold; here no fold is applied. Below the horizon
+(``cos θi ≤ 0`` or ``cos θo ≤ 0``) the value is 0. Mitsuba's ``eval`` returns ``f_r cos θo``; :meth:`RGLMaterial.eval`
 returns ``f_r`` (divided by ``cos θo``). Arithmetic is float64 on the file's float32 tables.
 """
 

@@ -1,10 +1,10 @@
 """A virtual RGL measurement: the ``.bsdf`` tables of any BRDF given as a NumPy callable.
 
-Follows the acquisition of Dupuy & Jakob 2018 (§4-5) with the model in place of the
+Follows the acquisition of Dupuy & Jakob 2018 with the model in place of the
 goniophotometer, and Mitsuba 3's ``measured`` plugin (``src/bsdfs/measured.cpp``) for what
 each table means:
 
-1. **NDF from retro-reflection** (paper §4.1): a microfacet BRDF seen back along ``ω`` is
+1. **NDF from retro-reflection** (as the paper measures it): a microfacet BRDF seen back along ``ω`` is
    ``f_r(ω, ω) = F D(ω) G1(ω)² / (4 cos²θ)`` and Smith's ``G1(ω) = cos θ / σ(ω)`` with the
    projected area ``σ(ω) = ∫ D(ωm) ⟨ω, ωm⟩₊ dωm``, so ``D ∝ f_r(ω, ω) σ[D](ω)²``: a fixed point,
    found by iterating from ``D = f_r(ω, ω)`` and normalizing ``∫ D cos θm dωm = 1`` after each
