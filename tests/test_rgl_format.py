@@ -434,3 +434,16 @@ def test_a_file_beyond_the_size_limit_is_refused_before_reading(tmp_path, monkey
     with pytest.raises(TensorFileError) as exc:
         read_tensor_file(path)
     _one_line(exc, path, "exceeds the reader's limit")
+
+
+def test_writer_refuses_a_material_the_reader_would_refuse(small_file, tmp_path):
+    import dataclasses
+
+    mat = read_rgl(small_file)
+    bad = dataclasses.replace(mat, sigma=np.zeros_like(mat.sigma))
+    with pytest.raises(ValueError, match="sigma"):
+        write_rgl(tmp_path / "bad.bsdf", bad)
+    bad = dataclasses.replace(mat, vndf=mat.vndf[:, :2])
+    with pytest.raises(ValueError, match="vndf"):
+        write_rgl(tmp_path / "bad.bsdf", bad)
+    assert list(tmp_path.iterdir()) == []
