@@ -72,10 +72,15 @@ def render_sphere(f, size: int = 256, light_dir=DEFAULT_LIGHT) -> np.ndarray:
         out[lit] = np.nan_to_num(vals, nan=0.0)
     return out
 
+def figure_size(fitted: bool) -> tuple[float, float]:
+    """``(width, height)`` in inches of the sphere figure, one or two spheres."""
+    return 4.1 * (2 if fitted else 1), 4.6
+
 
 def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DEFAULT_LIGHT,
-                 error: str | None = None, title: str | None = None):
-    """The lit-sphere figure: measured (table lookup / nearest sample) beside the fit, if any."""
+                 error: str | None = None, title: str | None = None, fig=None):
+    """The lit-sphere figure: measured (table lookup / nearest sample) beside the fit, if any;
+    drawn into ``fig`` (a figure or sub-figure) when given, else a new figure."""
     meas = render_sphere(measured_lookup(data), size, light_dir)
     how = "trilinear table lookup" if is_table(data) else "nearest sample"
     images = [(f"measured ({how})", meas)]
@@ -86,7 +91,7 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
     inside, _, wi, wo = sphere_directions(size, light_dir)
     lit = inside & (wi[..., 2] > 0) & (wo[..., 2] > 0)
     levels = _style.log_levels(meas[lit])
-    fig = _style.new_figure(4.1 * len(images), 4.6)
+    fig = _style.new_figure(*figure_size(len(images) > 1), fig)
     axes = np.atleast_1d(fig.subplots(1, len(images)))
     for ax, (label, img) in zip(axes, images):
         ax.imshow(_style.log_tonemap(img, *levels), interpolation="antialiased",
