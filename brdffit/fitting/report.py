@@ -191,7 +191,7 @@ def report_html(result, *, min_correl: float = MIN_CORRELATION) -> str:
         f"<td>{'' if init.get(r['name']) is None else format(init[r['name']], '.4g')}</td>"
         f"<td>[{r['lower']:g}, {r['upper']:g}]</td><td>{_esc(r['status'])}</td></tr>"
         for r in result.rows())
-    params = ("<table><tr><th>parameter</th><th>value ± stderr</th><th>rel.</th><th>initial"
+    params = ("<table class='brdffit-params'><tr><th>parameter</th><th>value ± stderr</th><th>rel.</th><th>initial"
               f"</th><th>bounds</th><th>status</th></tr>{params}</table>")
     stats = "".join(f"<tr><th style='text-align:left'>{_esc(k)}</th><td style='text-align:"
                     f"left'>{_esc(v)}</td></tr>" for k, v in _statistics(result))
