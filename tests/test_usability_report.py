@@ -64,7 +64,8 @@ def test_result_plot_of_data_in_memory_asks_for_them(result, table_path):
     with pytest.raises(brdffit.BrdffitError, match=r"pass the data: result.plot\(table\)"):
         in_memory.plot()
     fig = in_memory.plot(read_merl(table_path), only="albedo")
-    assert len(fig.subfigs) == 1 and "Directional albedo" in fig.subfigs[0].subfigs[0].get_suptitle()
+    (row,) = fig.subfigs
+    assert "Directional albedo" in row.subfigs[0].get_suptitle()
 
 
 def test_a_single_view_figure_is_shown_inline_without_pyplot(table_path):

@@ -77,7 +77,8 @@ def _init_flat(result) -> dict:
 def _relative(value: float, err: float) -> str:
     if not (math.isfinite(err) and err > 0 and value != 0):
         return ""
-    return f"{100 * err / abs(value):.2g} %"
+    pct = 100 * err / abs(value)
+    return f"{pct:.0f} %" if pct >= 100 else f"{pct:.2g} %"
 
 
 def _verdict(result) -> str:
@@ -153,12 +154,11 @@ def _esc(text) -> str:
 
 
 def _corr_colour(r: float) -> str:
-    """A cell's background: red for positive, blue for negative, stronger with ``|r|``."""
-    if not math.isfinite(r):
+    """A cell's background: red for positive, blue for negative, stronger with ``|r|``; none
+    below :data:`MIN_CORRELATION`."""
+    if not (math.isfinite(r) and abs(r) >= MIN_CORRELATION):
         return ""
-    a = min(abs(r), 1.0) * 0.6
-    rgb = "214,39,40" if r > 0 else "31,119,180"
-    return f" style='background:rgba({rgb},{a:.2f})'"
+    return f" style='background:{'#d62728' if r > 0 else '#1f77b4'}{int(min(abs(r), 1) * 153):02x}'"
 
 
 def _matrix_html(result) -> str:
@@ -191,8 +191,9 @@ def report_html(result, *, min_correl: float = MIN_CORRELATION) -> str:
         f"<td>{'' if init.get(r['name']) is None else format(init[r['name']], '.4g')}</td>"
         f"<td>[{r['lower']:g}, {r['upper']:g}]</td><td>{_esc(r['status'])}</td></tr>"
         for r in result.rows())
-    params = ("<table class='brdffit-params'><tr><th>parameter</th><th>value ± stderr</th><th>rel.</th><th>initial"
-              f"</th><th>bounds</th><th>status</th></tr>{params}</table>")
+    params = ("<table class='brdffit-params'><tr><th>parameter</th><th>value ± stderr</th>"
+              "<th>rel.</th><th>initial</th><th>bounds</th><th>status</th></tr>"
+              f"{params}</table>")
     stats = "".join(f"<tr><th style='text-align:left'>{_esc(k)}</th><td style='text-align:"
                     f"left'>{_esc(v)}</td></tr>" for k, v in _statistics(result))
     metrics = "".join(
