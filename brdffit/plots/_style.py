@@ -93,10 +93,11 @@ def readable(value: float) -> str:
 
 
 def tonemap_label(ref: float, top: float) -> str:
-    """How :func:`log_tonemap` mapped an image, for a figure's caption, in words: brightness
+    """How :func:`log_tonemap` mapped an image, for a figure's caption, in words (two lines,
+    to fit over one panel): brightness
     follows the logarithm of the luminance, the median at mid-grey (display ``LOG_MID``), ``top``
     (:func:`log_levels`) and above at white; values in BRDF units, 1/sr."""
-    return (f"log brightness scale: median {readable(ref)} /sr is mid-grey, "
+    return (f"log brightness scale: median {readable(ref)} /sr mid-grey,\n"
             f"{readable(top)} /sr and above white")
 
 

@@ -58,6 +58,19 @@ def sphere_directions(size: int = 256, light_dir=DEFAULT_LIGHT):
     return inside, n, to_local(light), to_local(np.array([0.0, 0.0, 1.0]))
 
 
+#: The sides of the image, counter-clockwise from the right, in 45° sectors.
+SIDES = ("right", "top right", "top", "top left", "left", "bottom left", "bottom", "bottom right")
+
+
+def light_side(light) -> str:
+    """Where a light direction ``(x, y, z)`` (unit, image ``x`` right, ``y`` up) comes from, in
+    words: ``"from the top of the image"``, or ``"on the view axis"``."""
+    x, y = float(light[0]), float(light[1])
+    if np.hypot(x, y) < 1e-6:
+        return "on the view axis"
+    return f"from the {SIDES[int(np.round(np.degrees(np.arctan2(y, x)) / 45.0)) % 8]} of the image"
+
+
 def render_sphere(f, size: int = 256, light_dir=DEFAULT_LIGHT) -> np.ndarray:
     """Linear radiance ``(S, S, 3)`` of the sphere shaded with ``f(wi, wo) -> rgb`` (NumPy, N×3).
 
@@ -101,10 +114,8 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
         ax.set_axis_off()
     light = np.asarray(light_dir, float) / np.linalg.norm(light_dir)
     elev = np.degrees(np.arccos(np.clip(light[2], -1, 1)))
-    fig.supxlabel(f"directional light {elev:.0f}° off the view axis,\n"
-                  f"towards ({light[0]:+.2f}, {light[1]:+.2f}) in the image; "
-                  f"{_style.tonemap_label(*levels)}",
-                  fontsize=8)
+    fig.supxlabel(f"directional light {elev:.0f}° off the view axis, {light_side(light)}; "
+                  f"{_style.tonemap_label(*levels)}", fontsize=8)
     name = getattr(model, "name", model) if model is not None else None
     fig.suptitle(title or _style.figure_title(data_name(data), name, error, "Lit sphere"))
     return fig
