@@ -174,7 +174,7 @@ def test_fit_report_text_has_lmfits_sections(result):
     text = brdffit.fit_report(result)
     assert text == result.report()
     for part in ("[[Fit]]", "[[Metrics]]", "[[Variables]]", "[[Correlations]]", "χ²",
-                 "AIC, BIC", "same data only", f"in {result.steps} steps"):
+                 "AIC, BIC", "same data only", f"in {result.steps} step"):
         assert part in text, part
     alpha = next(line for line in text.splitlines() if line.strip().startswith("alpha"))
     init = result.init["alpha"]
@@ -185,7 +185,7 @@ def test_fit_report_text_has_lmfits_sections(result):
 def test_html_report_holds_what_lmfit_shows_in_about_5_kb(result):
     page = result._repr_html_()
     assert 3_000 < len(page.encode()) < 10_000, len(page.encode())
-    for part in ("initial", "bounds", "status", "AIC", "BIC", "χ²", "reduced χ²", "steps",
+    for part in ("initial", "bounds", "status", "AIC", "BIC", "χ²", "reduced χ²", "step",
                  "correlation", "same data only", *result.metrics):
         assert part in page, part
     assert page.count("<tr><td>") >= len(result.names)  # a row per scalar

@@ -84,7 +84,8 @@ def _relative(value: float, err: float) -> str:
 def _verdict(result) -> str:
     word = "converged" if result.success else "FAILED"
     starts = len(result.starts)
-    return (f"{word} ({result.status}) in {result.steps} steps"
+    steps = f"{result.steps} step" + ("" if result.steps == 1 else "s")
+    return (f"{word} ({result.status}) in {steps}"
             + (f", best of {starts} starts" if starts > 1 else ""))
 
 

@@ -1,4 +1,6 @@
-"""Corner plot of a posterior (the ``corner`` package), with the truth or the LS optimum marked."""
+"""Corner plot of a posterior (the ``corner`` package), with the truth or the LS optimum marked:
+:func:`corner_figure` returns it (``post.corner()``, shown inline in a notebook),
+:func:`corner_plot` writes it to a file (``post.corner_plot(path)``, the command line's)."""
 
 from __future__ import annotations
 
