@@ -69,17 +69,17 @@ def diagnostics(data, model=None, params=None, *, path, error: str | None = None
         error: title text for the fit's error; by default the ``rmse_log`` of the model over
             the data (:func:`.error.model_error`, computed once, on at most 100 000 valid
             measurements); pass :func:`result_error` of a fit result to state its own.
-        only: an optional subset of ``("slice", "peaks", "albedo", "spheres")``.
+        only: an optional name or subset of ``("slice", "peaks", "albedo", "spheres")``.
 
     Files are written atomically (temporary file, then rename) and overwrite existing ones: the
     caller decides whether that is allowed.
     """
-    _check_only(only)
+    picked = _check_only(only)
     if model is not None and error is None:
         error = model_error(data, model, params)
     written = []
     for (name, plot), target in zip(FIGURES, figure_paths(path)):
-        if only is not None and name not in only:
+        if name not in picked:
             continue
         written.append(save_png(plot(data, model, params, error=error), target))
     return written
