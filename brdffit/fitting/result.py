@@ -11,7 +11,8 @@ For people: ``summary()`` (a few lines), ``report()`` and the notebook's HTML vi
 ``fit_report``: :mod:`brdffit.fitting.report`, with :attr:`FitResult.correlation`,
 :attr:`FitResult.aic`, :attr:`FitResult.bic`), and ``plot()``, the diagnostic figures as one
 matplotlib figure (:func:`brdffit.plots.plot_result`, imported when called, as ``export()``
-imports :mod:`brdffit.export`). The metrics' names and meanings are :mod:`brdffit.metrics`'.
+imports :mod:`brdffit.export`). The metrics' names and meanings are those of
+:mod:`brdffit.metrics`.
 """
 
 from __future__ import annotations
@@ -94,7 +95,8 @@ class FitResult:
         at_bound: flat name → ``"lower"``/``"upper"`` for scalars that ended at a bound.
         cost: ``½ Σ r²`` of the chosen loss at the optimum (scipy's ``cost``).
         metrics: ``rmse`` (of the chosen residual), ``rmse_cosine``, ``rmse_log``,
-            ``rel_error`` (mean ``|ρ̂-ρ|/max(ρ,1e-3)``), over the cells used.
+            ``rel_error`` (mean ``|ρ̂-ρ|/max(ρ,1e-3)``), over the cells used; their formulas
+            and meanings: :data:`brdffit.metrics.METRICS`.
         success, status, message: the verdict (``status`` is optimistix's result name,
             ``"successful"`` on success by the optimality test, ``"still"`` on success by the
             stillness test, :func:`brdffit.fitting.stages.still`; ``"degenerate"`` when the data
