@@ -30,6 +30,7 @@ _LAZY = {
     "register": ".models",
     "FitResult": ".fitting",
     "fit": ".api",
+    "fit_report": ".fitting",
     "get_loss": ".fitting",
     "fit_many": ".batch",
     "PosteriorResult": ".posterior",

@@ -115,9 +115,8 @@ def _run(args, outdir, figures, result_path, written) -> int:
         result = fit(table, model, subsample=args.subsample, throw=False,
                      progress=progress if progress.enabled else None)
         outputs.write(result_path, lambda tmp_path: write_text(tmp_path, result.to_json() + "\n"))
-        outputs.write(figures, lambda base: write_figures(
-            table, base, model=model, params=result.params, converged=result.success,
-            progress=progress), base=True)
+        outputs.write(figures, lambda base: write_figures(table, base, result, progress=progress),
+                      base=True)
         print(result.summary())
         print(f"\nrecovered against true ({MODEL}, {NOISE:.0%} noise):")
         print(comparison(result, TRUTH))

@@ -228,9 +228,8 @@ def run(args) -> int:
         if plot:
             from .plotting import write_figures
 
-            outputs.write(plot, lambda base: write_figures(
-                data, base, model=model, params=result.params, converged=result.success,
-                progress=progress), base=True)
+            outputs.write(plot, lambda base: write_figures(data, base, result, progress=progress),
+                          base=True)
         lines = [result.summary()] + ([cli_words(post.summary())] if post else [])
         print(text if args.json else "\n".join(lines))
         sys.stdout.flush()  # a failed stdout publishes nothing

@@ -201,6 +201,14 @@ class PosteriorResult:
             )
         return path
 
+    def corner(self, truths=None):
+        """A corner plot of the samples (the ``corner`` package) as a matplotlib figure, shown
+        inline in a notebook; ``truths`` marks values (default: the least-squares optimum). See
+        :func:`~brdffit.posterior.plot.corner_figure`; :meth:`corner_plot` writes a file."""
+        from .plot import corner_figure
+
+        return corner_figure(self, truths)
+
     def corner_plot(self, path, truths=None):
         """A corner plot of the samples (the ``corner`` package) written to ``path``; see
         :func:`~brdffit.posterior.plot.corner_plot`."""
