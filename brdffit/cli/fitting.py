@@ -85,7 +85,7 @@ def add_fit_options(target, solver=None) -> None:
                         help="residual weighting: linear, cosine, log, relative (+huber)")
     target.add_argument("--cutoff", type=float, metavar="DEG",
                         help="drop samples with θi or θo above DEG degrees")
-    target.add_argument("--weighting", choices=("angles", "samples"),
+    target.add_argument("--weighting", choices=("angles", "samples"), type=str.lower,
                         help="how samples count: by the share of the angles each stands for "
                         "(default; undoes the MERL θh warp) or once each")
     target.add_argument("--fix", action="append", metavar="NAME=VALUE",
@@ -116,9 +116,9 @@ def _add_solver_arguments(g) -> None:
                    help="the optimality test: converged when the best bounded Gauss-Newton step "
                    "would lower the cost by less than X times the cost (default 1e-9 in "
                    "float64, 1e-6 in float32)")
-    g.add_argument("--precision", choices=("float64", "float32"),
+    g.add_argument("--precision", choices=("float64", "float32"), type=str.lower,
                    help="model evaluation dtype (default float64)")
-    g.add_argument("--covariance", choices=("sandwich", "gn"),
+    g.add_argument("--covariance", choices=("sandwich", "gn"), type=str.lower,
                    help="standard errors: sandwich (robust, default) or gn (classical)")
 
 
@@ -170,7 +170,7 @@ def options_from(args):
         check_params(model, flags.init, "--init")
         check_params(model, flags.fixed, "--fix")
         options.check_params(model)
-    _check_names(options)
+    options = _check_names(options)
     return models, options
 
 
@@ -185,15 +185,21 @@ def _check_mcmc_ranges(args) -> None:
                          f"{MAX_CHAIN_VALUES:,} values; use fewer walkers or steps")
 
 
-def _check_names(options) -> None:
-    """Loss and solver names resolved now, so a typo fails before the input is read."""
-    from ..errors import UnknownNameError
+def _check_names(options):
+    """``options`` with its loss and solver names checked now, so that a typo fails before the
+    input is read, and spelled as registered (names ignore case: ``--loss LOG`` is ``log``)."""
+    from ..errors import UnknownNameError, canonical_name
     from ..fitting import SOLVERS, get_loss
 
-    if options.loss is not None:
-        get_loss(options.loss)
-    if options.solver is not None and options.solver not in SOLVERS:
-        raise UnknownNameError("solver", options.solver, SOLVERS)
+    loss, solver = options.loss, options.solver
+    if loss is not None:
+        get_loss(loss)
+        loss = loss.lower() if isinstance(loss, str) else loss  # all registered: lower case
+    if solver is not None:
+        if canonical_name(solver, SOLVERS) is None:
+            raise UnknownNameError("solver", solver, SOLVERS)
+        solver = canonical_name(solver, SOLVERS)
+    return dataclasses.replace(options, loss=loss, solver=solver)
 
 
 def run(args) -> int:
