@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._columns import columns
 from ._common import Progress, UsageError, check_outputs, write_text
 from ._signals import add_cleanup, remove_cleanup
 
@@ -55,8 +56,7 @@ def comparison(result, truth: dict) -> str:
             label = name if len(true) == 1 else f"{name}[{k}]"  # the names of summary() and --fix
             sigma = abs(got[k] - true[k]) / err[k] if err[k] > 0 else float("nan")
             rows.append((label, f"{true[k]:.5f}", f"{got[k]:.5f}", f"{err[k]:.1e}", f"{sigma:.1f}"))
-    widths = [max(len(r[i]) for r in rows) for i in range(5)]
-    return "\n".join("  ".join(f"{c:>{w}}" for c, w in zip(r, widths)) for r in rows)
+    return "\n".join(columns(rows, ">>>>>"))
 
 
 def run(args) -> int:

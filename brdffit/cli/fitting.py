@@ -299,17 +299,17 @@ def _fit_several(args, models, options, outputs) -> int:
 
 def comparison(results) -> str:
     """A table of fits of one table, in the given order: convergence, cost, the literature's
-    error metrics, free parameters, time."""
-    head = (f"{'rank':>4}  {'model':<14} {'converged':<9} {'cost':>12} {'rmse_log':>10} "
-            f"{'rmse_cosine':>11} {'free':>4} {'time':>7}")
-    rows = [head, "-" * len(head)]
+    error metrics, free parameters, time; columns sized to their content."""
+    from .._columns import columns
+
+    rows = [("rank", "model", "converged", "cost", "rmse_log", "rmse_cosine", "free", "time")]
     for k, r in enumerate(results, 1):
-        rows.append(f"{k:>4}  {r.model_name:<14} {'yes' if r.success else 'NO':<9} "
-                    f"{r.cost:>12.6g} {r.metrics['rmse_log']:>10.4g} "
-                    f"{r.metrics['rmse_cosine']:>11.4g} {len(r.free):>4} {r.wall_time:>6.2f}s")
+        rows.append((str(k), r.model_name, "yes" if r.success else "NO", f"{r.cost:.6g}",
+                     f"{r.metrics['rmse_log']:.4g}", f"{r.metrics['rmse_cosine']:.4g}",
+                     str(len(r.free)), f"{r.wall_time:.2f}s"))
     loss = {r.loss for r in results}
-    rows.append(f"(same cells, {'/'.join(sorted(loss))} loss; best first by cost, failed fits last)")
-    return "\n".join(rows)
+    return "\n".join(columns(rows, "><<>>>>>", rule=True) + [
+        f"(same cells, {'/'.join(sorted(loss))} loss; best first by cost, failed fits last)"])
 
 
 def _posterior(data, result, args, options, progress, mcmc, outputs):
