@@ -84,7 +84,10 @@ def run(args) -> int:
         raise UsageError(f"--outdir {outdir}: exists and is not a folder")
     figures, result_path = outdir / "demo.png", outdir / "result.json"
     written = figure_paths(figures)
-    replace = args.force or _all_ours([result_path, *written, outdir / MANIFEST], outdir)
+    foreign = _not_ours([result_path, *written, outdir / MANIFEST], outdir)
+    if foreign is not None and not args.force:
+        raise UsageError(f"{foreign}: already exists and is not what an earlier demo wrote; "
+                         f"pass --force to overwrite it")
     created = not outdir.exists()
     if created:
         try:
@@ -95,7 +98,7 @@ def run(args) -> int:
     if created:  # a folder made for this run goes again when nothing was published
         add_cleanup(remove_if_empty)
     try:
-        return _run(args, outdir, figures, result_path, written, replace)
+        return _run(args, outdir, figures, result_path, written)
     except BaseException:
         if created:
             remove_if_empty()
@@ -140,18 +143,16 @@ def _manifest(outdir: Path) -> dict | None:
     return files
 
 
-def _all_ours(paths, outdir: Path) -> bool:
-    """Every one of ``paths`` that exists is the demo's own (module docstring)."""
+def _not_ours(paths, outdir: Path) -> Path | None:
+    """The first of ``paths`` that exists and is not the demo's own (module docstring)."""
     owned = _manifest(outdir)
     for path in paths:
         if not os.path.lexists(path):
             continue
-        if owned is None:
-            return False
-        if path.name != MANIFEST and (path.name not in owned
-                                      or _sha256(path) != owned[path.name]):
-            return False
-    return True
+        if owned is None or (path.name != MANIFEST and (
+                path.name not in owned or _sha256(path) != owned[path.name])):
+            return path
+    return None
 
 
 def _write_manifest(outputs, outdir: Path, paths) -> None:
@@ -170,7 +171,7 @@ def _rmdir_quietly(folder) -> None:
         pass
 
 
-def _run(args, outdir, figures, result_path, written, replace: bool) -> int:
+def _run(args, outdir, figures, result_path, written) -> int:
     from .. import get_model
     from ..api import fit
     from .plotting import write_figures
@@ -178,7 +179,11 @@ def _run(args, outdir, figures, result_path, written, replace: bool) -> int:
 
     progress = Progress(args.quiet)
     model = get_model(MODEL)
-    with check_outputs([result_path, *written, outdir / MANIFEST], replace) as outputs, \
+    paths = [result_path, *written, outdir / MANIFEST]
+    # Every existing output is the demo's own (checked in run) or --force was given; without
+    # one to replace, a file that appears during the run is not overwritten (OutputSet).
+    replace = args.force or any(os.path.lexists(p) for p in paths)
+    with check_outputs(paths, replace) as outputs, \
             tempfile.TemporaryDirectory(prefix="brdffit-demo-") as tmp:
         from data_formats.merl import read_merl, write_merl
 
