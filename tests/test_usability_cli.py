@@ -129,6 +129,30 @@ def test_the_model_comparison_lines_up_whatever_the_names():
     assert note.startswith("(same cells")
 
 
+def test_the_posterior_summary_lines_up_with_long_parameter_names():
+    """``brdffit fit --mcmc`` of disney: ``base_color[0]`` (13 characters) shifted its row of
+    the posterior table (a 10-character name column)."""
+    from brdffit.posterior.result import PosteriorResult
+
+    names = ["alpha", "base_color[0]", "f0"]
+    diagnostics = SimpleNamespace(tau=dict.fromkeys(names, 12.3), ess=dict.fromkeys(names, 1234.0),
+                                  acceptance=0.3, acceptance_min=0.2, acceptance_max=0.4,
+                                  too_short=False, messages=[])
+    post = SimpleNamespace(
+        settings=dict(loss="cosine", nwalkers=32, nsteps=100, burn=20, thin=1, n_cells=1000),
+        diagnostics=diagnostics, model_name="disney", table="t", wall_time=1.0,
+        noise=dict(mode="fixed", sigma=0.01), names=[*names, "specular_tint"],
+        x_ls=[0.1, 0.5, 0.04, 0.2], stderr_ls={"alpha": 0.001}, sampled=names,
+        percentiles=dict.fromkeys(names, (0.1, 0.2, 0.3)), fixed=["specular_tint"])
+    head, *rows = PosteriorResult.summary(post).split("\n")[1:6]
+    ends = [i + len(w) for i, w in zip(_starts(head), head.split())]
+    for row in rows[:3]:
+        assert row.index("=") == rows[0].index("=")
+        cells = row.split()
+        assert [i + len(w) for i, w in zip(_starts(row), cells)][-3:] == ends[-3:], (head, row)
+    assert rows[3].index("=") == rows[0].index("=")  # the fixed parameter's line too
+
+
 def test_columns_are_as_wide_as_their_widest_cell():
     from brdffit._columns import columns
 
