@@ -484,7 +484,10 @@ def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool =
         outdir: if given, each result is written to ``outdir/<material>/<model>.json`` (and
             figures with ``plot``), the table to ``outdir/results.parquet`` and ``.csv``, and
             results already there for the same input checksum and options are read back
-            instead of refitted (``skipped``), unless ``force``.
+            instead of refitted (``skipped``), unless ``force``. The table holds every result
+            of the folder: this call's rows are merged into the one already there (a row of
+            the same material and model replaced; :func:`brdffit.batch.table.merge`), and a
+            table that is not a batch table raises ``BatchOutputError`` before any work.
         return_results: also return the :class:`~brdffit.FitResult` of each row (None where a
             job failed): ``(frame, results)``.
         progress: a progress bar on stderr (``None``: when stderr is a terminal).
