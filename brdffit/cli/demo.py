@@ -207,5 +207,6 @@ def _run(args, outdir, figures, result_path, written) -> int:
         sys.stdout.flush()
         outputs.publish()
         remove_cleanup(cleanup)
-    print(f"\nwrote {result_path} and " + ", ".join(str(p) for p in written))
+    print(f"\nwrote {result_path} and " + ", ".join(str(p) for p in written)
+          + f" ({outdir / MANIFEST} records them: a rerun replaces them)")
     return 0 if result.success else 1
