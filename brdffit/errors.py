@@ -32,6 +32,18 @@ class UnknownNameError(BrdffitError, KeyError):
         return self.args[0]
 
 
+def canonical_name(name, valid):
+    """The entry of ``valid`` that ``name`` names, ignoring case (registry names are
+    case-insensitive where a user types them: ``GGX`` is ``ggx``); ``name`` itself when it is an
+    entry; ``None`` when no entry matches (or ``name`` is not a string)."""
+    if not isinstance(name, str):
+        return None
+    if name in valid:
+        return name
+    folded = [v for v in valid if isinstance(v, str) and v.casefold() == name.casefold()]
+    return folded[0] if len(folded) == 1 else None
+
+
 class ConfigError(BrdffitError):
     """A preset or option with a wrong key, type or value."""
 

@@ -4,7 +4,7 @@
 * :mod:`.jobs`: one (material, model) fit on a worker, its files, the resume key.
 * :mod:`.outdir`: the output folder, checked before any work and written without following
   links.
-* :mod:`.table`: the results table (columns, parquet/CSV, summary).
+* :mod:`.table`: the results table (columns, parquet/CSV, summary; a rerun merges into it).
 * :mod:`.runner`: the cluster (closed to other users, no HTTP server), the jobs' outcomes (a
   dead worker included), ``fit_many``.
 """

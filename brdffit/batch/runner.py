@@ -19,7 +19,8 @@ the same :func:`run_batch`. Where jobs run:
   certificate that exist only in this process and its workers), so a connection without them
   (any other process, another user) is refused before it can submit anything. No HTTP server
   runs: its scheduler and workers open no HTTP listener at all (:mod:`brdffit.batch.nohttp`),
-  unless ``dashboard`` names an address for the scheduler's dashboard.
+  unless ``dashboard`` names an address for the scheduler's dashboard; its link is then printed
+  on stderr (when that port is in use, Dask serves it on a free one: the line says so).
 
 Worker processes live for the whole batch, so each compiles a model's programs once per table
 layout and reuses them for every later job; the persistent compilation cache
@@ -40,6 +41,7 @@ import shutil
 import tempfile
 import time
 import uuid
+import warnings
 
 from data_formats._atomic import writing
 
@@ -201,7 +203,10 @@ def _cluster_in(scratch: str, n: int, dashboard: str | None, security):
     # The start makes files in ``scratch`` (lock files, the nodes' folders): it counts as a
     # write in flight (data_formats._atomic.writing), so a signal's clean-up waits for it
     # instead of racing it (files made just after the removal stayed behind).
-    with writing(), dask.config.set(settings):
+    with writing(), dask.config.set(settings), warnings.catch_warnings():
+        # A dashboard port in use: Dask serves on another and warns; the link printed below
+        # says where (with the port asked for), in one line of ours.
+        warnings.filterwarnings("ignore", message=r"Port \d+ is already in use")
         # Started without workers, so that a signal during their start finds the cluster
         # (close_local_clusters); the workers are added below.
         cluster = nohttp.QuietCluster(n_workers=0, threads_per_worker=1, processes=True,
@@ -219,9 +224,27 @@ def _cluster_in(scratch: str, n: int, dashboard: str | None, security):
                     cluster.worker_spec.update(nohttp.quiet_workers(  # LocalCluster(n)
                         cluster.new_worker_spec()))
                 cluster.sync(cluster._correct_state)
+            if dashboard:
+                _report_dashboard(cluster, dashboard)
             yield c, f"{n} local worker{'s' * (n != 1)}"
     finally:
         _LIVE_CLUSTERS.discard(cluster)
+
+
+def _report_dashboard(cluster, asked: str) -> None:
+    """One line on stderr with the dashboard's link, and the port asked for when Dask had to
+    serve it on another (that one was in use)."""
+    import sys
+
+    from distributed.comm.addressing import parse_host_port
+
+    link = cluster.dashboard_link
+    port = cluster.scheduler_info.get("services", {}).get("dashboard")
+    with contextlib.suppress(ValueError, TypeError):
+        wanted = parse_host_port(asked)[1]
+        if wanted and port and wanted != port:
+            link += f" (port {wanted} is in use)"
+    print(f"Dask dashboard: {link}", file=sys.stderr, flush=True)
 
 
 def close_local_clusters(timeout: float = 5) -> None:
@@ -265,13 +288,16 @@ def _kill_children(timeout: float = 2) -> None:
 @dataclasses.dataclass
 class BatchOutcome:
     """``frame``: the results table; ``results``: a FitResult (or None) per row, when asked;
-    ``wall_time``: seconds; ``where``: what ran the jobs; ``files``: the table's files."""
+    ``wall_time``: seconds; ``where``: what ran the jobs; ``files``: the table's files;
+    ``merged``: rows of the outdir's earlier table ``kept`` and ``replaced`` in its files
+    (:func:`brdffit.batch.table.merge`)."""
 
     frame: object
     results: list | None
     wall_time: float
     where: str
     files: list
+    merged: dict | None = None
 
 
 def make_jobs(mats, models_and_kwargs) -> list[jobs.Job]:
@@ -292,10 +318,14 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
 
     ``outdir`` is created and checked (writable, no link or special file where an output
     belongs: :func:`brdffit.batch.outdir.prepare`) before the cluster starts, and removed again
-    if it was created and the cluster cannot start."""
+    if it was created and the cluster cannot start. The rows are merged into the outdir's
+    table (:func:`brdffit.batch.table.merge`), which is read, and refused if it is not a batch
+    table, before the cluster starts; ``frame`` holds this batch's rows only."""
     t0 = time.perf_counter()
+    previous = merged = None
     if outdir is not None:
         outdir, created = outdirs.prepare(outdir, _files_by_folder(job_list, plot))
+        previous = table.read(outdir)
     outputs: dict[int, dict] = {}
     with contextlib.ExitStack() as stack:
         try:
@@ -310,14 +340,17 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
                                                 "want_result": want_results}, progress)
         finally:
             df = table.frame([outputs[i]["row"] for i in sorted(outputs)])
-            files = table.write(df, outdir) if outdir is not None and len(df) else []
+            files = []
+            if outdir is not None and len(df):
+                whole, merged = table.merge(previous, df)
+                files = table.write(whole, outdir)
     results = None
     if want_results:
         from ..fitting import FitResult
 
         results = [None if outputs[i]["result"] is None else
                    FitResult.from_dict(outputs[i]["result"]) for i in sorted(outputs)]
-    return BatchOutcome(df, results, time.perf_counter() - t0, where, files)
+    return BatchOutcome(df, results, time.perf_counter() - t0, where, files, merged)
 
 
 def _files_by_folder(job_list, plot: bool) -> dict:
@@ -451,7 +484,10 @@ def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool =
         outdir: if given, each result is written to ``outdir/<material>/<model>.json`` (and
             figures with ``plot``), the table to ``outdir/results.parquet`` and ``.csv``, and
             results already there for the same input checksum and options are read back
-            instead of refitted (``skipped``), unless ``force``.
+            instead of refitted (``skipped``), unless ``force``. The table holds every result
+            of the folder: this call's rows are merged into the one already there (a row of
+            the same material and model replaced; :func:`brdffit.batch.table.merge`), and a
+            table that is not a batch table raises ``BatchOutputError`` before any work.
         return_results: also return the :class:`~brdffit.FitResult` of each row (None where a
             job failed): ``(frame, results)``.
         progress: a progress bar on stderr (``None``: when stderr is a terminal).

@@ -58,7 +58,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import BrdffitError, UnknownNameError
+from ..errors import BrdffitError, UnknownNameError, canonical_name
 from ..metrics import metric_text, metrics_text
 from ._text import literal, xml_comment
 from .gltf import gltf_document, params_from_gltf
@@ -166,6 +166,7 @@ def export(result, to: str, *, approximate: bool = False, **approx_options) -> E
     """
     from ..models import get_model
 
+    to = canonical_name(to, TARGETS) or to  # names ignore case: "GLTF" is "gltf"
     if to not in TARGETS:
         raise UnknownNameError("export target", to, TARGETS)
     name, params = (result if isinstance(result, tuple) else (result.model_name, result.params))
