@@ -12,7 +12,12 @@ What it adds to the low-level fit (whose arguments it passes on unchanged):
 * **monochrome data**: a sample list with one value column fits a grey model
   (:mod:`brdffit.grey`);
 * **provenance**: the result's ``provenance`` records the input (path, SHA-256), every option
-  with its defaults resolved, the versions of brdffit, JAX and optimistix, and the date.
+  with its defaults resolved, the versions of brdffit, JAX and optimistix, and the date;
+* **the persistent compilation cache**, turned on before the first fit of a process
+  (:func:`brdffit.compilation_cache.ensure`: a per-user folder, opt-out), so a new process
+  loads the programs an earlier one compiled;
+* **a failed fit's result**: with ``throw=True`` the :class:`~brdffit.errors.FitError` of a
+  fit that ran carries the result (``err.result``), finished as ``throw=False`` returns it.
 """
 
 from __future__ import annotations
@@ -137,7 +142,7 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
     """
     import jax
 
-    from . import fitting
+    from . import compilation_cache, fitting
     from .grey import is_monochrome, tie_options
     from .models.registry import get_model
     from .progress import resolve
@@ -147,6 +152,7 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
     solve_options, tied = options, {}
     if is_monochrome(data):
         solve_options, tied = tie_options(get_model(model), options)
+    compilation_cache.ensure()
     callback, bar = resolve(progress)
     try:
         with jax.enable_x64(True):

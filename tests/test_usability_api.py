@@ -67,3 +67,68 @@ def test_data_that_determine_nothing_raise_with_the_result(samples_csv):
     with pytest.raises(FitError, match="is degenerate") as info:  # the posterior's own fit
         brdffit.sample_posterior(zero, "ggx", nwalkers=8, nsteps=4, burn=0)
     assert info.value.result is not None and info.value.result.status == "degenerate"
+
+
+# -- the persistent compilation cache is on in the library -------------------------------------
+def _fresh(code, tmp_path, **env):
+    """Run ``code`` in a fresh Python process whose environment has no cache setting but
+    ``env``'s (the suite's own folder and opt-out removed); its stdout lines."""
+    full = {k: v for k, v in os.environ.items()
+            if k not in ("BRDFFIT_NO_COMPILATION_CACHE", "BRDFFIT_COMPILATION_CACHE_DIR",
+                         "JAX_COMPILATION_CACHE_DIR")}
+    full.update(PYTHONPATH=str(ROOT), XDG_CACHE_HOME=str(tmp_path / "xdg"), **env)
+    out = subprocess.run([sys.executable, "-W", "always", "-c", code], cwd=tmp_path, env=full,
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    return out.stdout.splitlines(), out.stderr
+
+
+FIT_AND_SAY_WHERE = (
+    "import brdffit, jax\n"
+    "r = brdffit.fit({path!r}, 'ggx')\n"
+    "print(r.success); print(jax.config.jax_compilation_cache_dir)\n"
+)
+
+
+def _entries(folder):
+    return [p for p in Path(folder).rglob("*") if p.is_file() and p.name.endswith("-cache")]
+
+
+def test_the_first_fit_of_a_fresh_process_fills_the_user_cache_folder(samples_csv, tmp_path):
+    (ok, where), _ = _fresh(FIT_AND_SAY_WHERE.format(path=str(samples_csv)), tmp_path)
+    folder = tmp_path / "xdg" / "brdffit" / "jax"
+    assert ok == "True" and where == str(folder)
+    assert _entries(folder), "the first fit wrote no compiled program into the cache"
+    assert folder.stat().st_mode & 0o077 == 0  # private: JAX runs what the cache holds
+
+
+def test_an_unusable_named_folder_warns_once_and_the_fit_goes_on(samples_csv, tmp_path):
+    blocked = tmp_path / "a-file"
+    blocked.write_text("not a folder")
+    (ok, where), err = _fresh(FIT_AND_SAY_WHERE.format(path=str(samples_csv)), tmp_path,
+                              BRDFFIT_COMPILATION_CACHE_DIR=str(blocked / "jax"))
+    assert ok == "True" and where == "None"
+    assert err.count("CompilationCacheWarning") == 1 and "cannot be used" in err, err
+    assert not (tmp_path / "xdg").exists()
+
+
+def test_the_cache_can_be_turned_off_and_left_to_the_user(tmp_path):
+    say = "from brdffit import compilation_cache as cc\n"
+    (where,), _ = _fresh(say + "cc.disable(); print(cc.ensure())", tmp_path)
+    assert where == "None"
+    (where,), _ = _fresh(say + "print(cc.ensure())", tmp_path, BRDFFIT_NO_COMPILATION_CACHE="1")
+    assert where == "None"
+    own = tmp_path / "mine"
+    (where,), _ = _fresh("import jax\n" f"jax.config.update('jax_compilation_cache_dir', {str(own)!r})\n"
+                         + say + "print(cc.ensure())", tmp_path)
+    assert where == str(own)  # a folder the user chose is theirs
+    assert not (tmp_path / "xdg").exists()
+
+
+def test_the_suite_keeps_the_cache_in_a_temporary_folder(samples_csv):
+    from brdffit import compilation_cache as cc
+
+    brdffit.fit(samples_csv, "ggx", max_steps=1, throw=False)
+    where = cc.location()
+    assert where is not None and where == os.environ["BRDFFIT_COMPILATION_CACHE_DIR"]
+    assert not Path(where).is_relative_to(cc.default_folder().parent)
