@@ -132,3 +132,59 @@ def test_the_suite_keeps_the_cache_in_a_temporary_folder(samples_csv):
     where = cc.location()
     assert where is not None and where == os.environ["BRDFFIT_COMPILATION_CACHE_DIR"]
     assert not Path(where).is_relative_to(cc.default_folder().parent)
+
+
+# -- fit_many keeps its cluster for the session --------------------------------------------------
+def test_fit_many_runs_twice_on_the_same_workers_and_closes_them_on_request(samples_csv):
+    first = brdffit.fit_many([samples_csv], "ggx", workers=1)
+    second = brdffit.fit_many([samples_csv], "ggx", workers=1)
+    assert first["success"].all() and second["success"].all()
+    # the same worker process: its compiled programs (jit caches) were there for call 2
+    assert first["worker"].iloc[0] == second["worker"].iloc[0]
+    from brdffit.batch import close_session, session_client
+
+    client = session_client()
+    try:
+        assert client is not None and list(client.run(os.getpid)) == [first["worker"].iloc[0]]
+        # the kept cluster is the batch's own: TLS on loopback, no HTTP server
+        info = client.scheduler_info()
+        assert client.scheduler.address.startswith("tls://127.0.0.1:")
+        assert "dashboard" not in info["services"]
+        other = brdffit.fit_many([samples_csv], "ggx", workers=1, keep_cluster=False)
+        assert other["worker"].iloc[0] != first["worker"].iloc[0]  # a cluster of its own
+        assert session_client() is client
+    finally:
+        close_session()
+    assert session_client() is None and client.status == "closed"
+
+
+KEPT_AT_EXIT = """
+import sys
+import brdffit
+
+if __name__ == "__main__":
+    a = brdffit.fit_many([sys.argv[1]], "ggx", workers=1)
+    b = brdffit.fit_many([sys.argv[1]], "ggx", workers=1)
+    print(a["worker"].iloc[0], b["worker"].iloc[0], bool(a["success"].all() and b["success"].all()))
+"""
+
+
+def test_the_kept_cluster_closes_quietly_at_exit(samples_csv, tmp_path):
+    """A script that calls fit_many twice and just ends: one cluster served both calls, and
+    the exit stops it without a warning, a traceback or a scratch folder left behind."""
+    import psutil
+
+    script = tmp_path / "twice.py"
+    script.write_text(KEPT_AT_EXIT)
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "TMPDIR": str(scratch)}
+    before = {p.pid for p in psutil.Process().children(recursive=True)}
+    out = subprocess.run([sys.executable, str(script), str(samples_csv)], cwd=tmp_path,
+                         env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    a, b, ok = out.stdout.split()
+    assert ok == "True" and a == b, out.stdout
+    assert out.stderr == "", out.stderr
+    assert list(scratch.glob("brdffit-dask-*")) == []
+    assert {p.pid for p in psutil.Process().children(recursive=True)} <= before
