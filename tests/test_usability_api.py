@@ -135,7 +135,7 @@ def test_the_suite_keeps_the_cache_in_a_temporary_folder(samples_csv):
 
 
 # -- fit_many keeps its cluster for the session --------------------------------------------------
-def test_fit_many_runs_twice_on_the_same_workers_and_closes_them_on_request(samples_csv):
+def test_fit_many_runs_twice_on_the_same_workers_and_closes_them_when_interrupted(samples_csv):
     first = brdffit.fit_many([samples_csv], "ggx", workers=1)
     second = brdffit.fit_many([samples_csv], "ggx", workers=1)
     assert first["success"].all() and second["success"].all()
@@ -150,12 +150,22 @@ def test_fit_many_runs_twice_on_the_same_workers_and_closes_them_on_request(samp
         info = client.scheduler_info()
         assert client.scheduler.address.startswith("tls://127.0.0.1:")
         assert "dashboard" not in info["services"]
+        # a fit that fails is a row and, asked for, its result (fit_many never throws)
+        failed, results = brdffit.fit_many([samples_csv], "ggx", workers=1, max_steps=1,
+                                           return_results=True)
+        assert not failed["success"].iloc[0] and failed["worker"].iloc[0] == first["worker"].iloc[0]
+        assert results[0].status == "nonlinear_max_steps_reached" and not results[0].success
         other = brdffit.fit_many([samples_csv], "ggx", workers=1, keep_cluster=False)
         assert other["worker"].iloc[0] != first["worker"].iloc[0]  # a cluster of its own
         assert session_client() is client
+        from brdffit.batch import open_client
+
+        with pytest.raises(KeyboardInterrupt), open_client(workers=1, keep=True) as (c, _):
+            assert c is client  # an interrupted batch leaves jobs running: the cluster closes
+            raise KeyboardInterrupt
+        assert session_client() is None and client.status == "closed"
     finally:
         close_session()
-    assert session_client() is None and client.status == "closed"
 
 
 KEPT_AT_EXIT = """

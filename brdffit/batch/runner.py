@@ -152,7 +152,8 @@ def open_client(client=None, *, workers: int | None = None, scheduler: str | Non
     ``DASK_SCHEDULER_ADDRESS``), or one of a new local cluster of ``workers`` processes (with
     the scheduler's dashboard at ``dashboard``, an address like ``127.0.0.1:8787``, if given).
     With ``keep``, the local cluster is the session's (:func:`session_client`): started by the
-    first call, reused by the next ones and closed at exit."""
+    first call, reused by the next ones and closed at exit, or when a batch on it is
+    interrupted (its jobs would go on running)."""
     if client is not None:
         yield client, "the given client"
         return
@@ -174,7 +175,12 @@ def open_client(client=None, *, workers: int | None = None, scheduler: str | Non
         return
     n = check_workers(workers) or default_workers()
     if keep:
-        yield _session(n, dashboard)
+        kept = _session(n, dashboard)
+        try:
+            yield kept
+        except BaseException:  # an interrupted batch leaves its jobs running on the workers:
+            close_session()  # the next call would wait for them
+            raise
         return
     with _local_cluster(n, dashboard) as c:
         yield c
@@ -247,7 +253,6 @@ def close_session() -> None:
     scratch folder goes); the next call starts a new one. Runs at interpreter exit too."""
     with _KEPT_LOCK:
         _close_kept()
-
 
 
 @contextlib.contextmanager
