@@ -50,4 +50,4 @@ class FitError(BrdffitError):
         self.result = result
 
     def __reduce__(self):
-        return type(self), (self.args[0], self.result)
+        return type(self), (self.args[0] if self.args else "", self.result)
