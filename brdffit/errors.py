@@ -49,4 +49,17 @@ class ConfigError(BrdffitError):
 
 
 class FitError(BrdffitError):
-    """A fit that cannot run (no usable data) or that failed with ``throw=True``."""
+    """A fit that cannot run (no usable data) or that failed with ``throw=True``.
+
+    ``result``: the :class:`~brdffit.fitting.FitResult` of a fit that ran and failed (the step
+    limit, a non-finite cost, data that determine nothing: ``success=False``, its ``status``
+    and ``message`` say why), as ``throw=False`` would have returned it; ``None`` for a fit
+    that could not start. It survives pickling (a Dask worker's error keeps its result).
+    """
+
+    def __init__(self, message: str, result=None):
+        super().__init__(message)
+        self.result = result
+
+    def __reduce__(self):
+        return type(self), (self.args[0] if self.args else "", self.result)

@@ -96,7 +96,7 @@ def prepare_process() -> str | None:
     jax.config.update("jax_enable_x64", True)
     from .. import compilation_cache
 
-    return compilation_cache.enable()
+    return compilation_cache.ensure()
 
 
 def _worker_name() -> str:

@@ -10,8 +10,12 @@ the same :func:`run_batch`. Where jobs run:
   the workers;
 * else a ``LocalCluster`` of ``workers`` processes (default: one per CPU core, at most one per
   2 GiB of memory: :func:`default_workers`), one thread each
-  (a fit already uses every core it is given; two fits in one process would only queue),
-  started for the batch and closed after it. Each local worker is pinned to its own share of
+  (a fit already uses every core it is given; two fits in one process would only queue):
+  ``brdffit batch`` starts one for the batch and closes it after; ``fit_many`` keeps the one
+  it started for the session (:func:`session_client`), so a later call with the same
+  ``workers`` and ``dashboard`` runs at once on workers that have compiled their programs
+  already, and closes it at exit (:func:`close_session`; a signal's
+  :func:`close_local_clusters` closes it too). Each local worker is pinned to its own share of
   the cores (:class:`brdffit.batch.pinning.PinCores`): XLA sizes its thread pool to the cores a process may use, so
   unpinned workers would each start a thread per core and oversubscribe the machine.
   The local cluster is closed to other users of the machine: it listens on loopback only and
@@ -33,12 +37,14 @@ here, :data:`LOCAL_SCHEDULER`) and then recorded as ``worker died``; the other j
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import dataclasses
 import logging
 import os
 import shutil
 import tempfile
+import threading
 import time
 import uuid
 import warnings
@@ -143,10 +149,13 @@ def default_workers() -> int:
 
 @contextlib.contextmanager
 def open_client(client=None, *, workers: int | None = None, scheduler: str | None = None,
-                dashboard: str | None = None):
+                dashboard: str | None = None, keep: bool = False):
     """Yield ``(client, description)``: the given client, one connected to ``scheduler`` (or
     ``DASK_SCHEDULER_ADDRESS``), or one of a new local cluster of ``workers`` processes (with
-    the scheduler's dashboard at ``dashboard``, an address like ``127.0.0.1:8787``, if given)."""
+    the scheduler's dashboard at ``dashboard``, an address like ``127.0.0.1:8787``, if given).
+    With ``keep``, the local cluster is the session's (:func:`session_client`): started by the
+    first call, reused by the next ones and closed at exit, or when a batch on it is
+    interrupted (its jobs would go on running)."""
     if client is not None:
         yield client, "the given client"
         return
@@ -166,9 +175,86 @@ def open_client(client=None, *, workers: int | None = None, scheduler: str | Non
         with c:
             yield c, f"scheduler {address}"
         return
-    workers = check_workers(workers)
-    with _local_cluster(workers or default_workers(), dashboard) as c:
+    n = check_workers(workers) or default_workers()
+    if keep:
+        kept = _session(n, dashboard)
+        try:
+            yield kept
+        except BaseException:  # an interrupted batch leaves its jobs running on the workers:
+            close_session()  # the next call would wait for them
+            raise
+        return
+    with _local_cluster(n, dashboard) as c:
         yield c
+
+
+@dataclasses.dataclass
+class _Kept:
+    """The session's local cluster: its settings, client and the stack that closes it."""
+
+    key: tuple
+    client: object
+    description: str
+    stack: contextlib.ExitStack
+
+
+#: The local cluster :func:`fit_many` keeps for the session (``None``: none yet, or closed).
+_KEPT: _Kept | None = None
+_KEPT_LOCK = threading.Lock()
+_AT_EXIT = False
+
+
+def _session(n: int, dashboard: str | None) -> tuple:
+    """``(client, description)`` of the session's local cluster of ``n`` workers (and
+    ``dashboard``): the one kept from an earlier call while it still runs with the same
+    settings, else a new one (the old one closed first). Its workers stay alive between
+    calls, and with them every program they compiled."""
+    global _KEPT, _AT_EXIT
+    with _KEPT_LOCK:
+        if _KEPT is not None and _KEPT.key == (n, dashboard) and _running(_KEPT.client):
+            return _KEPT.client, _KEPT.description
+        _close_kept()
+        if not _AT_EXIT:  # registered after distributed's exit handlers, so it runs first
+            _AT_EXIT = bool(atexit.register(close_session))
+        stack = contextlib.ExitStack()
+        try:
+            c, where = stack.enter_context(_local_cluster(n, dashboard))
+        except BaseException:
+            stack.close()
+            raise
+        _KEPT = _Kept((n, dashboard), c, where, stack)
+        return c, where
+
+
+def _running(client) -> bool:
+    """Whether ``client`` and its cluster still run (a signal may have closed them)."""
+    from distributed.core import Status
+
+    cluster = getattr(client, "cluster", None)
+    return client.status == "running" and getattr(cluster, "status", None) == Status.running
+
+
+def _close_kept() -> None:
+    """Close the kept cluster, if any (caller holds :data:`_KEPT_LOCK`)."""
+    global _KEPT
+    kept, _KEPT = _KEPT, None
+    if kept is not None:
+        with contextlib.suppress(Exception):
+            kept.stack.close()
+
+
+def session_client():
+    """The ``distributed.Client`` of the local cluster :func:`fit_many` keeps for this
+    session, or ``None`` (none started yet, or closed)."""
+    with _KEPT_LOCK:
+        return _KEPT.client if _KEPT is not None and _running(_KEPT.client) else None
+
+
+def close_session() -> None:
+    """Close the local cluster :func:`fit_many` keeps for this session (its workers stop, its
+    scratch folder goes); the next call starts a new one. Runs at interpreter exit too."""
+    with _KEPT_LOCK:
+        _close_kept()
 
 
 @contextlib.contextmanager
@@ -313,8 +399,9 @@ def make_jobs(mats, models_and_kwargs) -> list[jobs.Job]:
 
 def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=False,
               client=None, workers=None, scheduler=None, dashboard=None,
-              progress=None) -> BatchOutcome:
+              progress=None, keep: bool = False) -> BatchOutcome:
     """Run every job, collect one row per job (in job order), write the table if ``outdir``.
+    ``keep``: run on the session's local cluster (:func:`open_client`).
 
     ``outdir`` is created and checked (writable, no link or special file where an output
     belongs: :func:`brdffit.batch.outdir.prepare`) before the cluster starts, and removed again
@@ -330,7 +417,8 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
     with contextlib.ExitStack() as stack:
         try:
             c, where = stack.enter_context(open_client(client, workers=workers,
-                                                       scheduler=scheduler, dashboard=dashboard))
+                                                       scheduler=scheduler, dashboard=dashboard,
+                                                       keep=keep))
         except BaseException:
             if outdir is not None:  # nothing ran: no output folder left behind
                 outdirs.remove_empty(created)
@@ -467,7 +555,7 @@ class _Bar:
 def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool = False,
              plot: bool = False, return_results: bool = False, workers: int | None = None,
              scheduler: str | None = None, dashboard: str | None = None,
-             progress: bool | None = False, **fit_options):
+             progress: bool | None = False, keep_cluster: bool = True, **fit_options):
     """Fit every model in ``models`` to every input, on Dask; return a pandas DataFrame.
 
     Args:
@@ -478,9 +566,14 @@ def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool =
             list of names.
         client: a ``distributed.Client`` to run on; by default a scheduler at ``scheduler`` or
             ``DASK_SCHEDULER_ADDRESS``, else a local cluster of ``workers`` processes (one per
-            core) started for this call (:func:`open_client`), closed to other users (TLS with
-            credentials of its own) and without an HTTP server unless ``dashboard`` gives the
-            scheduler's dashboard an address (``"127.0.0.1:8787"``).
+            core; :func:`open_client`), closed to other users (TLS with credentials of its
+            own) and without an HTTP server unless ``dashboard`` gives the scheduler's
+            dashboard an address (``"127.0.0.1:8787"``).
+        keep_cluster: keep that local cluster for the session (default): the next call with
+            the same ``workers`` and ``dashboard`` runs on it, on workers that have already
+            compiled their programs; it closes at exit or with :func:`close_session`
+            (:func:`session_client` gives its client). ``False``: a cluster for this call
+            alone, closed when it returns.
         outdir: if given, each result is written to ``outdir/<material>/<model>.json`` (and
             figures with ``plot``), the table to ``outdir/results.parquet`` and ``.csv``, and
             results already there for the same input checksum and options are read back
@@ -507,5 +600,6 @@ def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool =
                          [(m, dict(fit_options)) for m in names])
     out = run_batch(job_list, outdir=outdir, force=force, plot=plot,
                     want_results=return_results, client=client, workers=workers,
-                    scheduler=scheduler, dashboard=dashboard, progress=progress)
+                    scheduler=scheduler, dashboard=dashboard, progress=progress,
+                    keep=keep_cluster)
     return (out.frame, out.results) if return_results else out.frame

@@ -15,7 +15,8 @@ RuntimeWarnings never reach stderr: the readers and commands check values themse
 other warning is one line, ``brdffit COMMAND: warning: ...``.
 
 The commands set float64 (``jax_enable_x64``) and the per-user persistent compilation cache
-(:mod:`brdffit.compilation_cache`) before any JAX work; the library itself never does.
+(:mod:`brdffit.compilation_cache`) before any JAX work; the library turns the cache on at its
+first fit.
 JAX and the fitter are imported only inside the commands that need them.
 """
 
