@@ -9,6 +9,12 @@ notebook's background job). So each fit's :class:`Events` is registered under an
 while the fit runs, the solver's ``verbose`` hook (:class:`StepReporter`) carries that id as an
 *operand* of the callback (an array of the solver: every fit runs the same compiled program),
 and the callback looks the fit up by it.
+
+Progress is presentation, never a different program: every fit's solver carries a
+:class:`StepReporter`, with or without a callback. A fit without one carries the id ``0``
+(:data:`SILENT`) and is not registered; inside the program the callback sits in a
+``lax.cond`` on ``id != 0``, so a silent fit runs the same compiled program as one with a
+progress bar and never calls back to the host.
 """
 
 from __future__ import annotations
@@ -18,11 +24,15 @@ import itertools
 
 import equinox as eqx
 import jax
-import jax.numpy as jnp
+import numpy as np
 
-#: The fits running now, by id (a fit registers itself for the duration of its solves).
+#: The fits running now, by id (a fit with a callback registers itself for the duration of
+#: its solves).
 _RUNNING: dict[int, Events] = {}
 _IDS = itertools.count(1)
+#: The id a fit without a callback carries: its step events are never sent (see the module
+#: docstring).
+SILENT = 0
 
 
 class Events:
@@ -31,14 +41,15 @@ class Events:
 
     def __init__(self, callback=None):
         self.callback = callback
-        self.id = next(_IDS)
+        self.id = SILENT if callback is None else next(_IDS)
         self.start = 0
         self.stage = None  # None, or a solve on a subset of the cells ("warm", "scan")
         self.floor = 0.0  # the constant the solver's cost carries (Problem.cost_floor)
         self.prefix = ""  # "base-" while the simpler model of a refined fit runs
 
     def __enter__(self) -> Events:
-        _RUNNING[self.id] = self
+        if self.id != SILENT:
+            _RUNNING[self.id] = self
         return self
 
     def __exit__(self, *exc) -> None:
@@ -72,11 +83,10 @@ class Events:
         self.emit("step" if self.stage is None else f"{self.stage}-step", start=self.start,
                   step=int(step), cost=cost)
 
-    def reporter(self) -> StepReporter | None:
-        """The solver's ``verbose`` hook for this fit, or ``None`` without a callback."""
-        if self.callback is None:
-            return None
-        return StepReporter(jnp.asarray(self.id, jnp.int32))
+    def reporter(self) -> StepReporter:
+        """The solver's ``verbose`` hook for this fit (one that sends nothing without a
+        callback: the same program either way)."""
+        return StepReporter(np.asarray(self.id, np.int32))
 
 
 def _report(fit_id, step, loss) -> None:
@@ -87,10 +97,17 @@ def _report(fit_id, step, loss) -> None:
 
 class StepReporter(eqx.Module):
     """optimistix ``verbose`` callable: sends (step, cost) to the :class:`Events` of fit
-    ``fit_id``, which is an operand of the callback (see the module docstring)."""
+    ``fit_id``, which is an operand of the callback (see the module docstring); nothing, and no
+    call to the host, when ``fit_id`` is :data:`SILENT`."""
 
     fit_id: jax.Array
 
     def __call__(self, **kwargs) -> None:
-        jax.debug.callback(_report, self.fit_id, kwargs["num_steps"][1],
-                           kwargs["loss_this_step"][1])
+        def send(fit_id, step, loss):
+            jax.debug.callback(_report, fit_id, step, loss)
+
+        def skip(fit_id, step, loss):
+            del fit_id, step, loss
+
+        jax.lax.cond(self.fit_id != SILENT, send, skip, self.fit_id,
+                     kwargs["num_steps"][1], kwargs["loss_this_step"][1])

@@ -48,6 +48,7 @@ import numpy as np
 import optimistix as optx
 
 from ..errors import UnknownNameError
+from .events import Events
 from .transforms import held_on_bounds
 
 SOLVERS = {
@@ -351,15 +352,14 @@ def with_ftol(solver, ftol):
     return eqx.tree_at(lambda s: s.ftol, solver, _array(ftol))
 
 
-def _quiet(**kwargs):
-    del kwargs
-
-
 def make_solver(name, rtol: float, atol: float, verbose=None, noise: float = 1e-12,
                 ftol: float = 1e-9):
     """An optimistix solver from a registry name, made bounded (module docstring) and wrapped in
     :class:`Optimality` with tolerance ``ftol``. An optimistix solver passed in is wrapped as it
-    is (its steps are then not kept inside the box: they are clamped when evaluated)."""
+    is (its steps are then not kept inside the box: they are clamped when evaluated).
+    ``verbose`` is the solver's step hook; by default one that sends nothing
+    (:meth:`.events.Events.reporter` of a fit without a callback: the same program as a fit
+    with one)."""
     if isinstance(name, Optimality):
         return name
     if isinstance(name, optx.AbstractLeastSquaresSolver):
@@ -369,7 +369,8 @@ def make_solver(name, rtol: float, atol: float, verbose=None, noise: float = 1e-
             cls = SOLVERS[name]
         except (KeyError, TypeError):
             raise UnknownNameError("solver", str(name), SOLVERS) from None
-        solver = cls(rtol=rtol, atol=atol, verbose=verbose or _quiet)
+        hook = Events().reporter() if verbose is None else verbose
+        solver = cls(rtol=rtol, atol=atol, verbose=hook)
         if isinstance(solver, optx.LevenbergMarquardt):
             solver = eqx.tree_at(lambda s: s.descent, solver, BoxDampedNewtonDescent())
         elif isinstance(solver, optx.GaussNewton):
