@@ -101,7 +101,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser.add_argument("--version", action="version", version=f"brdffit {__version__}")
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--quiet", "-q", action="store_true", help="no progress messages")
+    talk = common.add_mutually_exclusive_group()
+    talk.add_argument("--quiet", "-q", action="store_true", help="no progress messages")
+    talk.add_argument("--verbose", "-v", action="store_true",
+                      help="every progress event of a fit on a line (solver steps included), "
+                           "also when stderr is not a terminal; by default a terminal shows one "
+                           "progress bar per fit")
     common.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for module in COMMANDS:

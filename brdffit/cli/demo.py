@@ -99,7 +99,7 @@ def _run(args, outdir, figures, result_path, written) -> int:
     from .plotting import write_figures
     from .synth import synthesize_table
 
-    progress = Progress(args.quiet)
+    progress = Progress.of(args)
     model = get_model(MODEL)
     with check_outputs([result_path, *written], args.force) as outputs, \
             tempfile.TemporaryDirectory(prefix="brdffit-demo-") as tmp:
@@ -113,7 +113,7 @@ def _run(args, outdir, figures, result_path, written) -> int:
         table = read_merl(path)
         progress(f"fitting {MODEL} to {path.name} ({path.stat().st_size:,} bytes)")
         result = fit(table, model, subsample=args.subsample, throw=False,
-                     progress=progress if progress.enabled else None)
+                     progress=progress.fit_events)
         outputs.write(result_path, lambda tmp_path: write_text(tmp_path, result.to_json() + "\n"))
         outputs.write(figures, lambda base: write_figures(
             table, base, model=model, params=result.params, converged=result.success,

@@ -143,7 +143,7 @@ def run(args) -> int:
             model, params = get_model(result.model_name), result.params
         outputs.write(args.output, lambda base: write_figures(
             data, base, model=model, params=params, converged=result is None or result.success,
-            progress=Progress(args.quiet)), base=True)
+            progress=Progress.of(args)), base=True)
         outputs.publish()
     if not args.quiet:
         print("wrote " + ", ".join(str(p) for p in written))
