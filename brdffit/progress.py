@@ -43,8 +43,8 @@ class Bar:
     fit converged; the next fit's ``setup`` opens another. Sampler events: ``sample-step`` (``step``, ``of``) advances a bar of ``of``
     steps by one.
 
-    Events may come from the threads that run the compiled solve: the bar is drawn under a
-    lock. :meth:`close` is idempotent.
+    The bar is drawn under a lock (a command line's signal handler may close it from another
+    thread). :meth:`close` is idempotent.
     """
 
     def __init__(self, desc: str = "", file=None):

@@ -1,9 +1,8 @@
 """SIGINT and SIGTERM: clean up, say so in one line, exit 130 / 143, never crash on the way out.
 
 Why not the default ``KeyboardInterrupt``: a signal that arrives during a fit lands while XLA's
-worker threads are still running the jitted computation (and calling back into Python for
-progress). Unwinding ``main`` then returns to the interpreter, whose shutdown tears down JAX's
-client and modules under those threads: the process died with SIGSEGV after printing
+worker threads are still running the jitted computation. Unwinding ``main`` then returns to the
+interpreter, whose shutdown tears down JAX's client and modules under those threads: the process died with SIGSEGV after printing
 "interrupted" in 7 of 12 trials. And a Python handler runs only when the main thread next
 executes bytecode, which during a long jitted call can be many seconds later.
 
@@ -88,8 +87,8 @@ def _noop(signum, frame) -> None:  # the watcher thread does the work
 def _close_progress_bars() -> None:
     """Close the progress bars still drawn (tqdm's: a fit's, a batch's), so that the signal's
     line comes after the bar's last line and no redraw follows it: the bar's line has no end
-    of line until the bar closes, and a closed bar ignores the updates still arriving from
-    the threads of a running solve."""
+    of line until the bar closes, and a closed bar ignores the updates the running fit still
+    sends."""
     tqdm = getattr(sys.modules.get("tqdm"), "tqdm", None)  # a command without a bar: no import
     for bar in list(getattr(tqdm, "_instances", ())):
         try:
