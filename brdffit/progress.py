@@ -20,6 +20,8 @@ position per emcee step.
 
 from __future__ import annotations
 
+import os
+import sys
 import threading
 from collections.abc import Callable
 
@@ -28,6 +30,9 @@ STAGES = {"scan-step": "scan", "warm-step": "warm start", "step": "all cells"}
 #: A fit's bar while its total is unknown: the steps so far and the time, without a rate (the
 #: first step waits for the compilation, and the steps of the stages differ in cost).
 COUNTING = "{desc}: {n_fmt} steps [{elapsed}{postfix}]"
+#: The size of a terminal that does not tell its own (tqdm would take it for -1 × -1 and draw
+#: nothing).
+COLUMNS, ROWS = 100, 24
 
 
 class Bar:
@@ -57,9 +62,11 @@ class Bar:
         from tqdm.auto import tqdm
 
         if self.bar is None:
+            columns = _columns(self.file or sys.stderr)
+            size = {} if columns is None else {"ncols": columns, "nrows": ROWS}
             self.bar = tqdm(total=total, desc=desc, unit="step", file=self.file, postfix=postfix,
-                            dynamic_ncols=True, leave=True,
-                            bar_format=COUNTING if total is None else None)
+                            dynamic_ncols=columns is None, leave=True,
+                            bar_format=COUNTING if total is None else None, **size)
         return self.bar
 
     def __call__(self, event: str, info: dict) -> None:
@@ -108,6 +115,17 @@ class Bar:
             if self.bar is not None:
                 self.bar.close()
                 self.bar = None
+
+
+def _columns(file) -> int | None:
+    """The width of a bar drawn on ``file``: ``None`` (tqdm follows the terminal's size as it
+    redraws) where ``file`` is a terminal that tells its width or no terminal at all, and
+    :data:`COLUMNS` for a terminal that says 0 (a pseudo-terminal nobody sized)."""
+    try:
+        width = os.get_terminal_size(file.fileno()).columns
+    except (AttributeError, OSError, ValueError):  # not a terminal, or no descriptor
+        return None
+    return width if width > 0 else COLUMNS
 
 
 def resolve(progress, desc: str = "") -> tuple[Callable | None, Bar | None]:

@@ -158,3 +158,26 @@ def test_a_signal_closes_the_bar_before_its_line():
     bar.update(1)
     bar.refresh()
     assert out.getvalue() == before
+
+
+def test_the_bar_shows_on_a_terminal_that_does_not_tell_its_size():
+    """A pseudo-terminal nobody sized says 0 × 0: tqdm took it for -1 columns and -1 rows and
+    drew nothing at all (before, also the old bar)."""
+    import os
+    import pty
+
+    master, slave = pty.openpty()
+    tty = os.fdopen(slave, "w", buffering=1)
+    try:
+        bar = Bar(file=tty)
+        bar("setup", {"model": "ggx", "n_cells": 1200, "n_free": 8})
+        bar("start", {"start": 0, "of": 1})
+        for k in range(3):
+            bar("scan-step", {"start": 0, "step": k, "cost": 1.0 / (k + 1)})
+        bar("done", {"success": True, "cost": 0.25})
+        tty.flush()
+        text = os.read(master, 65536).decode(errors="replace")
+    finally:
+        tty.close()
+        os.close(master)
+    assert "fit ggx" in text and "start 1/1" in text and "3/3" in text and "converged" in text
