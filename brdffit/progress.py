@@ -45,8 +45,10 @@ class Bar:
     prefixed ``base-`` for the simpler model a refined model is started from) advances it
     by one, with the start (``start k/n``), the stage and the cost of the step beside it.
     ``done`` sets the total to the steps taken and closes the bar (full), saying whether the
-    fit converged; the next fit's ``setup`` opens another. Sampler events: ``sample-step`` (``step``, ``of``) advances a bar of ``of``
-    steps by one.
+    fit converged; the next fit's ``setup`` opens another. The fit sends its step events as
+    each compiled round of steps returns (:mod:`brdffit.fitting.events`), so the count moves
+    by up to that many steps at a time. Sampler events: ``sample-step`` (``step``, ``of``)
+    advances a bar of ``of`` steps by one.
 
     The bar is drawn under a lock (a command line's signal handler may close it from another
     thread). :meth:`close` is idempotent.
@@ -56,7 +58,6 @@ class Bar:
         self.desc, self.file, self.bar = desc, file, None
         self._lock = threading.RLock()
         self._where = ""  # "start k/n" of the fit, and whose it is (the simpler model's)
-        self._of = 1
 
     def _open(self, total, desc: str, postfix: str | None = None):
         from tqdm.auto import tqdm
@@ -78,12 +79,11 @@ class Bar:
         name = event.removeprefix("base-")
         if event == "setup":
             self.close()
-            self._where, self._of = "", 1
+            self._where = ""
             self._open(None, self.desc or f"fit {info.get('model', '')}".strip(),
                        f"{info.get('n_cells')} cells, {info.get('n_free')} free parameters")
         elif name == "start":
-            self._of = info.get("of", 1)
-            self._where = (f"start {info.get('start', 0) + 1}/{self._of}"
+            self._where = (f"start {info.get('start', 0) + 1}/{info.get('of', 1)}"
                            + (" of the simpler model" if base else ""))
             self._fit_bar().set_postfix_str(self._where)  # drawn now: the solve begins
         elif name in STAGES:
