@@ -3,8 +3,9 @@
 Why not the default ``KeyboardInterrupt``: a signal that arrives during a fit lands while XLA's
 worker threads are still running the jitted computation. Unwinding ``main`` then returns to the
 interpreter, whose shutdown tears down JAX's client and modules under those threads: the
-process died with SIGSEGV after printing "interrupted" in 7 of 12 trials. And a Python handler runs only when the main thread next
-executes bytecode, which during a long jitted call can be many seconds later.
+process died with SIGSEGV after printing "interrupted" in 7 of 12 trials. And a Python handler
+runs only when the main thread next executes bytecode, which during a long jitted call can be
+many seconds later.
 
 So, while a command runs, both signals get a no-op Python handler plus a wakeup file
 descriptor (:func:`signal.set_wakeup_fd`): the C-level handler writes the signal number into a
