@@ -23,6 +23,7 @@ from __future__ import annotations
 import os
 import sys
 import threading
+import warnings
 from collections.abc import Callable
 
 #: What a fit's step events say about the stage they come from (:mod:`brdffit.fitting.stages`).
@@ -60,8 +61,7 @@ class Bar:
         self._where = ""  # "start k/n" of the fit, and whose it is (the simpler model's)
 
     def _open(self, total, desc: str, postfix: str | None = None):
-        from tqdm.auto import tqdm
-
+        tqdm = _auto_tqdm()
         if self.bar is None:
             columns = _columns(self.file or sys.stderr)
             size = {} if columns is None else {"ncols": columns, "nrows": ROWS}
@@ -115,6 +115,23 @@ class Bar:
             if self.bar is not None:
                 self.bar.close()
                 self.bar = None
+
+
+def _auto_tqdm():
+    """``tqdm.auto.tqdm``; in Jupyter without ipywidgets, tqdm's "IProgress not found" warning
+    on its first import is replaced by one that names the extra that brings the widget."""
+    if "tqdm.auto" in sys.modules:
+        return sys.modules["tqdm.auto"].tqdm
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        from tqdm.auto import tqdm
+    for w in caught:
+        if "IProgress" in str(w.message):
+            warnings.warn("progress=True draws a text bar: the notebook's progress widget needs "
+                          "ipywidgets (pip install 'brdffit[notebook]')", stacklevel=2)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return tqdm
 
 
 def _columns(file) -> int | None:

@@ -181,3 +181,33 @@ def test_the_bar_shows_on_a_terminal_that_does_not_tell_its_size():
         tty.close()
         os.close(master)
     assert "fit ggx" in text and "start 1/1" in text and "3/3" in text and "converged" in text
+
+
+_KERNEL_WITHOUT_WIDGETS = """
+import io, sys, types, warnings
+ipython = types.ModuleType("IPython")
+ipython.get_ipython = lambda: types.SimpleNamespace()
+sys.modules["IPython"] = ipython  # what tqdm.auto looks for: a Jupyter kernel's shell
+sys.modules["ipykernel.zmqshell"] = types.ModuleType("ipykernel.zmqshell")
+sys.modules["ipywidgets"] = None  # not installed
+from brdffit.progress import Bar
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    Bar("posterior", file=io.StringIO())("sample-step", {"step": 1, "of": 2})
+for w in caught:
+    print(w.category.__name__, str(w.message))
+"""
+
+
+def test_a_kernel_without_ipywidgets_is_told_which_extra_to_install():
+    """Before: tqdm's own "IProgress not found. Please update jupyter and ipywidgets" warning;
+    now one that names ``brdffit[notebook]`` (the bar still works, as text)."""
+    import os
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    run = subprocess.run([sys.executable, "-c", _KERNEL_WITHOUT_WIDGETS], capture_output=True,
+                         text=True, env=env, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert "TqdmWarning" not in run.stdout and "IProgress" not in run.stdout
+    assert "pip install 'brdffit[notebook]'" in run.stdout
