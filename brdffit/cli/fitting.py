@@ -216,11 +216,11 @@ def run(args) -> int:
     with check_outputs([out, table] + _plot_paths(plot) + mcmc_paths, args.force,
                        sizes={table: _MERL_BYTES} if table else None) as outputs:
         data = read_input(args.file)
-        progress = Progress(quiet=args.quiet)
+        progress = Progress.of(args)
         progress(f"fitting {model.name} to {args.file}")
         try:
             result = fit(data, model, options, throw=False,
-                         progress=progress if progress.enabled else None)
+                         progress=progress.fit_events)
             result = dataclasses.replace(result, message=cli_words(result.message), provenance={
                 **result.provenance, "command": "brdffit fit", "config": list(options.sources)})
             post = _posterior(data, result, args, options, progress, mcmc, outputs)
@@ -267,13 +267,13 @@ def _fit_several(args, models, options, outputs) -> int:
     from ..api import fit
 
     data = read_input(args.file)
-    progress = Progress(quiet=args.quiet)
+    progress = Progress.of(args)
     results = []
     for model in models:
         progress(f"fitting {model.name} to {args.file}")
         try:
             result = fit(data, model, options, throw=False,
-                         progress=progress if progress.enabled else None)
+                         progress=progress.fit_events)
         except BrdffitError as exc:  # the library's advice, in flags
             raise UsageError(cli_words(str(exc))) from exc
         results.append(dataclasses.replace(result, message=cli_words(result.message)))

@@ -138,7 +138,7 @@ def run(args) -> int:
     with check_outputs(written, args.force) as outputs:
         data = read_input(args.file)
         outputs.write(args.output, lambda base: write_figures(
-            data, base, result, progress=Progress(args.quiet)), base=True)
+            data, base, result, progress=Progress.of(args)), base=True)
         outputs.publish()
     if not args.quiet:
         print("wrote " + ", ".join(str(p) for p in written))
