@@ -135,9 +135,13 @@ def test_verbose_prints_every_event(monkeypatch, capsys, samples_csv):
     assert code == 0 and err == ""  # piped without --verbose: nothing
 
 
-def test_quiet_and_verbose_are_one_usage_error(monkeypatch, capsys, samples_csv):
+@pytest.mark.parametrize("where", ["after", "before", "split"])
+def test_quiet_and_verbose_are_one_usage_error(monkeypatch, capsys, samples_csv, where):
     monkeypatch.setattr(sys, "stderr", io.StringIO())
-    assert main(["fit", str(samples_csv), "--model", "ggx", "--quiet", "--verbose"]) == 2
+    fit = ["fit", str(samples_csv), "--model", "ggx"]
+    argv = {"after": fit + ["--quiet", "--verbose"], "before": ["--quiet", "--verbose"] + fit,
+            "split": ["--quiet"] + fit + ["--verbose"]}[where]
+    assert main(argv) == 2
     err = sys.stderr.getvalue()
     assert len(err.strip().splitlines()) == 1 and "not allowed with" in err
 
