@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 
 from ..errors import BrdffitError
+from ..io import formats_text
 from ._words import cli_words
 from ._common import (
     Progress,
@@ -48,13 +49,13 @@ def add_parser(sub, parents) -> None:
         "fit",
         parents=parents,
         allow_abbrev=False,
-        help="fit a model to a MERL table or a sample list",
-        description="Fit a registered model to FILE (.binary MERL table, .csv/.npz sample list) "
+        help="fit a model to a measured table, sample list or material",
+        description=f"Fit a registered model to FILE ({formats_text()}) "
         "and print a summary: parameters with standard errors, error metrics, convergence, "
         "parameters at a bound, time. Exit code 1 if the fit did not converge (outputs are "
         "still written, marked success=false).",
     )
-    p.add_argument("file", metavar="FILE", help="a .binary MERL table or a .csv/.npz sample list")
+    p.add_argument("file", metavar="FILE", help=f"a {formats_text()}")
     p.add_argument("--model", "-m", help="a registered model (see `brdffit models`), or "
                    "several separated by commas (compared side by side); may come from the "
                    "preset instead")

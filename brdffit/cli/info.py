@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import check_readable, is_table, read_input
+from ..io import formats_text, is_table
+from ._common import check_readable, read_input
 
 
 def add_parser(sub, parents) -> None:
@@ -22,10 +23,11 @@ def add_parser(sub, parents) -> None:
         parents=parents,
         allow_abbrev=False,
         help="print a table's figures (dims, valid fraction, channel ranges, peak)",
-        description="Print the figures of a MERL table (.binary) or a sample list (.csv, .npz): "
-        "dimensions, valid fraction, per-channel min/median/max over valid samples, the peak.",
+        description=f"Print the figures of FILE ({formats_text()}): dimensions, valid "
+        "fraction, per-channel min/median/max over valid samples, the peak; for an RGL "
+        "material also its symmetry, grid sizes, channels and description.",
     )
-    p.add_argument("file", metavar="FILE", help="a .binary MERL table or a .csv/.npz sample list")
+    p.add_argument("file", metavar="FILE", help=f"a {formats_text()}")
     p.add_argument("--json", action="store_true", help="print the figures as JSON on stdout")
     p.set_defaults(run=run, needs_jax=False)
 

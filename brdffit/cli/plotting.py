@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io import formats_text
 from ._common import UsageError, check_outputs, read_input
 
 
@@ -27,7 +28,7 @@ def add_parser(sub, parents) -> None:
         "fitted | log ratio), specular-peak curves, directional albedo, lit spheres. With --fit, "
         "the fitted model from a `brdffit fit --out` result is drawn beside the measurement.",
     )
-    p.add_argument("file", metavar="FILE", help="a .binary MERL table or a .csv/.npz sample list")
+    p.add_argument("file", metavar="FILE", help=f"a {formats_text()}")
     p.add_argument("--fit", metavar="RESULT.json", help="a result written by `brdffit fit --out`")
     add_model_option(p, "draw")
     p.add_argument("--output", "-o", required=True, metavar="FIG.png",

@@ -1,4 +1,10 @@
-"""``brdffit synth``: a synthetic MERL table (or sample list) from a model and known parameters."""
+"""``brdffit synth``: a synthetic measurement from a model and known parameters.
+
+The output's suffix picks what is written (:data:`brdffit.io.READERS`): a MERL table over
+MERL's grid, a sample list of random direction pairs, or an RGL material (a virtual
+measurement in the ``.bsdf`` form Mitsuba's ``measured`` BSDF renders,
+:func:`data_formats.rgl.synthesize_rgl`; anisotropic when the model is).
+"""
 
 from __future__ import annotations
 
@@ -6,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io import formats_text
 from ._common import UsageError, check_outputs, check_params, parse_assignments
 
 
@@ -17,8 +24,9 @@ def add_parser(sub, parents) -> None:
         help="write a synthetic table from a model and known parameters",
         description="Evaluate a registered model with known parameters over the MERL grid and "
         "write it as a MERL table (.binary; cells below the horizon are missing, as in the real "
-        "database), or over N random direction pairs (dense near the specular peak) as a sample "
-        "list (.csv/.npz, --samples).",
+        "database), over N random direction pairs (dense near the specular peak) as a sample "
+        "list (.csv/.npz, --samples), or as a virtual measurement in the RGL material format "
+        "(.bsdf, what Mitsuba 3's `measured` BSDF renders; anisotropic if the model is).",
     )
     p.add_argument("--model", "-m", required=True, help="a registered model (see `brdffit models`)")
     p.add_argument("--param", "-p", action="append", metavar="NAME=VALUE",
@@ -31,7 +39,7 @@ def add_parser(sub, parents) -> None:
     p.add_argument("--samples", type=int, default=100_000, metavar="N",
                    help="number of random direction pairs for a .csv/.npz output (default 100000)")
     p.add_argument("--output", "-o", required=True, metavar="OUT",
-                   help="output file: .binary (MERL table), .csv or .npz (sample list)")
+                   help=f"output file: {formats_text()}")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     p.set_defaults(run=run)
 
@@ -103,9 +111,29 @@ def synthesize_samples(model, params, n, *, noise=0.0, seed=0, name=""):
     return SampleSet(wi=wi, wo=wo, rgb=rgb, valid=np.ones(n, bool), name=name)
 
 
+def synthesize_material(model, params, *, noise=0.0, seed=0, name="", isotropic=None):
+    """A virtual RGL measurement (:func:`data_formats.rgl.synthesize_rgl`) of ``model`` with
+    ``params``: the material's tables are made from ``f_r`` evaluated by
+    :func:`brdffit.models.evaluate.evaluate_model` (with the multiplicative ``noise``);
+    ``isotropic`` defaults to the model's declaration."""
+    from data_formats.rgl import synthesize_rgl
+
+    from ..models.evaluate import evaluate_model
+
+    rng = np.random.default_rng(seed)
+    iso = model.isotropic if isotropic is None else bool(isotropic)
+    return synthesize_rgl(lambda wi, wo: _noisy(evaluate_model(model, params, wi, wo), noise, rng),
+                          isotropic=iso, name=name)
+
+
+#: Bytes each kind of output is expected to take (the free-space check before writing);
+#: ``None``: 200 bytes per sample of ``--samples``.
+OUTPUT_SIZES = {"MERL table": 34_992_012, "sample list": None, "RGL material": 64 << 20}
+
+
 def run(args) -> int:
     from .. import get_model
-    from ._common import INPUT_SUFFIXES
+    from ..io import INPUT_SUFFIXES, suffixes_text
 
     from ..config import check_fit_options
 
@@ -113,20 +141,27 @@ def run(args) -> int:
     params = check_params(model, parse_assignments(args.param, "--param"), "--param")
     check_fit_options({"seed": args.seed}, lambda key: f"--{key}")
     _check_noise(args.noise)
-    if Path(args.output).suffix.lower() != ".binary":
-        _check_samples(args.samples)
     out = Path(args.output)
     suffix = out.suffix.lower()
-    if suffix not in INPUT_SUFFIXES:
-        raise UsageError(f"{out}: unknown output format {suffix!r}; use .binary, .csv or .npz")
-    size = 34_992_012 if suffix == ".binary" else 200 * args.samples
+    kind = INPUT_SUFFIXES.get(suffix)
+    if kind is None:
+        raise UsageError(f"{out}: unknown output format {suffix!r}; use {suffixes_text()}")
+    if kind == "sample list":
+        _check_samples(args.samples)
+    size = OUTPUT_SIZES.get(kind) or 200 * args.samples
     with check_outputs([out], args.force, {out: size}) as outputs:
-        if suffix == ".binary":
+        if kind == "MERL table":
             from data_formats.merl import write_merl
 
             table = synthesize_table(model, params, noise=args.noise, seed=args.seed,
                                      name=out.stem)
             outputs.write(out, lambda tmp: write_merl(tmp, table))
+        elif kind == "RGL material":
+            from data_formats.rgl import write_rgl
+
+            material = synthesize_material(model, params, noise=args.noise, seed=args.seed,
+                                           name=out.stem)
+            outputs.write(out, lambda tmp: write_rgl(tmp, material))
         else:
             from data_formats.samplelist import write_samples
 

@@ -27,7 +27,7 @@ import numpy as np
 from matplotlib.patches import Patch
 
 from . import _style
-from ._eval import data_name, evaluate_model, is_table, warped_coords
+from ._eval import data_name, evaluate_model, is_table, sample_view, warped_coords
 from .error import log_ratio
 
 
@@ -82,7 +82,7 @@ def slice_data(data, model=None, params=None, *, phi_d_deg: float = 90.0, phi_to
         n_pd = np.shape(data.valid)[2]
         k = int(np.clip(np.floor(phi_d_deg / 180.0 * n_pd), 0, n_pd - 1))
         return _table_slice(data, model, params, k)
-    return _binned_slice(data, model, params, phi_d_deg, phi_tol_deg, bins)
+    return _binned_slice(sample_view(data), model, params, phi_d_deg, phi_tol_deg, bins)
 
 
 def _show_rgb(ax, rgb, valid, levels, title):
