@@ -36,6 +36,10 @@ READERS = {
 }
 #: Suffix → what it holds (``".binary"`` → ``"MERL table"``).
 INPUT_SUFFIXES = {suffix: kind for suffix, (kind, _, _) in READERS.items()}
+#: The kinds whose reader gives a measurement that evaluates itself at any direction pair
+#: (``eval(wi, wo)``) and can be anisotropic; the figures add the polar view of the lobe
+#: (:func:`brdffit.plots.figure_names`).
+SELF_EVALUATING = frozenset({"RGL material"})
 
 
 class InputFormatError(BrdffitError):

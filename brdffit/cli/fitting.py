@@ -64,7 +64,8 @@ def add_parser(sub, parents) -> None:
     p.add_argument("--out", "-o", metavar="RESULT.json", help="write the result as JSON")
     p.add_argument("--plot", metavar="FIG.png",
                    help="write the diagnostic figures FIG-slice.png, FIG-peaks.png, "
-                   "FIG-albedo.png, FIG-spheres.png (and FIG-corner.png with --mcmc)")
+                   "FIG-albedo.png, FIG-spheres.png (FIG-polar.png for a .bsdf, "
+                   "FIG-corner.png with --mcmc)")
     p.add_argument("--table", metavar="FITTED.binary",
                    help="write the fitted model rendered over the MERL grid")
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
@@ -208,7 +209,7 @@ def run(args) -> int:
     from ..posterior import cli_support as mcmc
 
     mcmc_paths = [p for p in mcmc.output_paths(args).values() if p]
-    with check_outputs([out, table] + _plot_paths(plot) + mcmc_paths, args.force,
+    with check_outputs([out, table] + _plot_paths(plot, args.file) + mcmc_paths, args.force,
                        sizes={table: _MERL_BYTES} if table else None) as outputs:
         data = read_input(args.file)
         progress = Progress(quiet=args.quiet)
@@ -322,12 +323,12 @@ def _posterior(data, result, args, options, progress, mcmc, outputs):
     return post
 
 
-def _plot_paths(plot):
+def _plot_paths(plot, source):
     if not plot:
         return []
     from .plotting import figure_paths
 
-    return figure_paths(plot)
+    return figure_paths(plot, source)
 
 
 def _write_table(result, outputs, path, progress) -> None:
