@@ -361,8 +361,7 @@ def test_samples_are_the_pattern_with_angle_measure_weights(synthesized):
     # The weights turn the adaptive pattern into a quadrature of the Rusinkiewicz angle
     # measure: the weighted share of pairs with θh < 15° approximates that share of the angles
     # (Monte Carlo over uniform θh, φh, θd, φd, both directions above the horizon: 0.255).
-    # Measured: aniso 0.250, iso 0.332 (the grazing θi = 87.5° slice is over-weighted about
-    # twice; counting each pair once gives 0.17 for both).
+    # Measured: iso 0.261, aniso 0.277; counting each pair once gives 0.17.
     rng = np.random.default_rng(5)
     th, td = rng.uniform(0, np.pi / 2, (2, 400000))
     ph, pd = rng.uniform(0, 2 * np.pi, (2, 400000))
@@ -374,7 +373,8 @@ def test_samples_are_the_pattern_with_angle_measure_weights(synthesized):
     v = s.valid
     weighted = np.sum(s.weight[v] * (th_s[v] < np.radians(15))) / np.sum(s.weight[v])
     counted = np.mean(th_s[v] < np.radians(15))
-    assert abs(weighted - share) < 0.35 * share, (weighted, share, counted)
+    assert abs(weighted - share) < 0.12 * share, (weighted, share, counted)
+    assert abs(weighted - share) < abs(counted - share) / 3, (weighted, share, counted)
 
 
 def test_material_requires_its_fields_and_reports_its_layout(synthesized):
