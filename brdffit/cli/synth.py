@@ -111,11 +111,12 @@ def synthesize_samples(model, params, n, *, noise=0.0, seed=0, name=""):
     return SampleSet(wi=wi, wo=wo, rgb=rgb, valid=np.ones(n, bool), name=name)
 
 
-def synthesize_material(model, params, *, noise=0.0, seed=0, name="", isotropic=None):
+def synthesize_material(model, params, *, noise=0.0, seed=0, name="", isotropic=None, **tables):
     """A virtual RGL measurement (:func:`data_formats.rgl.synthesize_rgl`) of ``model`` with
     ``params``: the material's tables are made from ``f_r`` evaluated by
     :func:`brdffit.models.evaluate.evaluate_model` (with the multiplicative ``noise``);
-    ``isotropic`` defaults to the model's declaration."""
+    ``isotropic`` defaults to the model's declaration; ``tables`` (``resolution``,
+    ``n_theta_i``, ...) go to ``synthesize_rgl``."""
     from data_formats.rgl import synthesize_rgl
 
     from ..models.evaluate import evaluate_model
@@ -123,7 +124,7 @@ def synthesize_material(model, params, *, noise=0.0, seed=0, name="", isotropic=
     rng = np.random.default_rng(seed)
     iso = model.isotropic if isotropic is None else bool(isotropic)
     return synthesize_rgl(lambda wi, wo: _noisy(evaluate_model(model, params, wi, wo), noise, rng),
-                          isotropic=iso, name=name)
+                          isotropic=iso, name=name, **tables)
 
 
 #: Bytes each kind of output is expected to take (the free-space check before writing);
