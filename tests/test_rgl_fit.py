@@ -289,3 +289,24 @@ def test_batch_fits_a_material(files, tmp_path):
     table = pd.read_csv(tmp_path / "out" / "results.csv")
     assert table["material"].tolist() == ["iso"] and table["success"].all()
     np.testing.assert_allclose(table["p_alpha"], ISO["alpha"], rtol=1e-4)
+
+
+def test_synth_renders_a_fit_result_as_a_material(files, tmp_path, capsys):
+    """``synth --fit RESULT.json``: the fitted model and its parameters, written as a .bsdf
+    (with synth's own table sizes) that evaluates as the model."""
+    from data_formats.rgl import read_rgl
+
+    from brdffit.models.evaluate import evaluate_model
+
+    result = tmp_path / "fit.json"
+    brdffit.fit(files["iso"], "ggx").to_json(result)
+    out = tmp_path / "refit.bsdf"
+    assert main(["synth", "--fit", str(result), "-o", str(out)]) == 0
+    assert "ggx: diffuse=(0.1, 0.2, 0.3)" in capsys.readouterr().out
+    s = read_rgl(files["iso"]).to_samples()
+    ok = np.asarray(s.valid, bool)
+    wi, wo = s.wi[ok], s.wo[ok]
+    got, truth = read_rgl(out).eval(wi, wo), evaluate_model("ggx", ISO, wi, wo)
+    assert np.median(np.abs(got - truth) / truth) < 0.02
+    assert main(["synth", "-o", str(tmp_path / "x.bsdf")]) == 2
+    _one_line_error(capsys.readouterr().err, "--model", "--fit")

@@ -4,6 +4,12 @@ The output's suffix picks what is written (:data:`brdffit.io.READERS`): a MERL t
 MERL's grid, a sample list of random direction pairs, or an RGL material (a virtual
 measurement in the ``.bsdf`` form Mitsuba's ``measured`` BSDF renders,
 :func:`data_formats.rgl.synthesize_rgl`; anisotropic when the model is).
+
+``--fit RESULT.json`` takes the model and its parameters from a ``brdffit fit --out`` result
+(``--model`` then picks one result of a file of several; ``--param`` overrides a value): a fit
+rendered in any format, e.g. as a ``.bsdf`` for Mitsuba's ``measured`` BSDF. (The renderer
+exports of ``brdffit export`` write a native BSDF's parameters; a tabulated material is a
+measurement, so it is written here.)
 """
 
 from __future__ import annotations
@@ -26,9 +32,14 @@ def add_parser(sub, parents) -> None:
         "write it as a MERL table (.binary; cells below the horizon are missing, as in the real "
         "database), over N random direction pairs (dense near the specular peak) as a sample "
         "list (.csv/.npz, --samples), or as a virtual measurement in the RGL material format "
-        "(.bsdf, what Mitsuba 3's `measured` BSDF renders; anisotropic if the model is).",
+        "(.bsdf, what Mitsuba 3's `measured` BSDF renders; anisotropic if the model is). "
+        "--fit RESULT.json takes the model and parameters from a fit.",
     )
-    p.add_argument("--model", "-m", required=True, help="a registered model (see `brdffit models`)")
+    p.add_argument("--model", "-m", help="a registered model (see `brdffit models`); with "
+                   "--fit, the model whose result to use in a file of several")
+    p.add_argument("--fit", metavar="RESULT.json",
+                   help="take the model and its parameters from a `brdffit fit --out` result "
+                   "(--param overrides a value)")
     p.add_argument("--param", "-p", action="append", metavar="NAME=VALUE",
                    help="a parameter value, e.g. alpha=0.1 or f0=0.9,0.6,0.3 (one number fills "
                    "all three channels); repeatable; others take the model's defaults")
@@ -132,14 +143,32 @@ def synthesize_material(model, params, *, noise=0.0, seed=0, name="", isotropic=
 OUTPUT_SIZES = {"MERL table": 34_992_012, "sample list": None, "RGL material": 64 << 20}
 
 
+def _shown(value) -> str:
+    """``0.1`` or ``(0.9, 0.6, 0.3)`` (``--param``'s spelling), from a number or an array."""
+    arr = np.atleast_1d(np.asarray(value, float))
+    text = ", ".join(f"{v:.6g}" for v in arr)
+    return text if arr.size == 1 else f"({text})"
+
+
 def run(args) -> int:
     from .. import get_model
     from ..io import INPUT_SUFFIXES, suffixes_text
 
     from ..config import check_fit_options
 
-    model = get_model(args.model)
-    params = check_params(model, parse_assignments(args.param, "--param"), "--param")
+    params = parse_assignments(args.param, "--param")
+    if args.fit:
+        from .plotting import _read_result
+
+        result = _read_result(args.fit, model=args.model)
+        model = get_model(result.model_name)
+        params = {**{k: np.asarray(v, float) for k, v in result.params.items()}, **params}
+    elif args.model:
+        model = get_model(args.model)
+    else:
+        raise UsageError("give the model: --model NAME (with --param values), or --fit "
+                         "RESULT.json (a `brdffit fit --out` result)")
+    params = check_params(model, params, "--param")
     check_fit_options({"seed": args.seed}, lambda key: f"--{key}")
     _check_noise(args.noise)
     out = Path(args.output)
@@ -171,6 +200,6 @@ def run(args) -> int:
             outputs.write(out, lambda tmp: write_samples(tmp, samples))
         outputs.publish()
     if not args.quiet:
-        shown = ", ".join(f"{k}={v}" for k, v in params.items()) or "defaults"
+        shown = ", ".join(f"{k}={_shown(v)}" for k, v in params.items()) or "defaults"
         print(f"wrote {out} ({model.name}: {shown})")
     return 0
