@@ -1,8 +1,8 @@
 """Mitsuba's tensor file: named n-dimensional arrays in one binary file (read, write).
 
 The container of the RGL material database (``.bsdf``, Dupuy & Jakob 2018) and of other
-Mitsuba data (``include/mitsuba/core/tensor.h``, ``src/libcore/tensor.cpp``,
-``python/mitsuba/tensor_io.py`` of Mitsuba 3). All integers are little-endian:
+Mitsuba data (``include/mitsuba/core/tensor.h`` and ``mitsuba/python/tensor_io.py`` of
+Mitsuba 3). All integers are little-endian:
 
 * 12 bytes ``b"tensor_file\\0"``; 2 bytes version ``uint8`` major, minor = ``1, 0``;
   ``uint32`` field count.
@@ -44,8 +44,9 @@ MAX_FIELDS = 1024
 MAX_NDIM = 16
 #: The header (magic to the last field's shape) may be at most this long.
 MAX_HEADER_BYTES = 1 << 20
-#: Largest file the reader accepts (the largest spectral RGL files are ~100 MB).
-MAX_FILE_BYTES = 4 << 30
+#: Largest file the reader accepts, 1 GiB (RGL files are a few MB, spectral ones up to a few
+#: hundred; an evaluation keeps float64 copies of the tables, about twice the file).
+MAX_FILE_BYTES = 1 << 30
 _PREFIX = struct.Struct("<12sBBI")
 
 

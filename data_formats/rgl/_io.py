@@ -132,7 +132,9 @@ def read_rgl(path) -> RGLMaterial:
 
 def write_rgl(path, material: RGLMaterial) -> None:
     """Write ``material`` as an RGL ``.bsdf`` file that Mitsuba 3's ``measured`` plugin loads
-    (the inverse of :func:`read_rgl`), atomically. Tables are stored as float32."""
+    (the inverse of :func:`read_rgl`), atomically. Tables are stored as float32. A material
+    that :func:`read_rgl` would refuse (shapes that do not match, values the evaluation cannot
+    use) raises ``ValueError`` before anything is written."""
     if not isinstance(material, RGLMaterial):
         raise TypeError(f"write_rgl: expected an RGLMaterial, got {type(material).__name__}")
     m = material
@@ -147,4 +149,11 @@ def write_rgl(path, material: RGLMaterial) -> None:
         fields["wavelengths"] = np.ascontiguousarray(m.wavelengths, dtype=np.float32)
     if m.valid is not None:
         fields["valid"] = np.ascontiguousarray(m.valid, dtype=np.uint8)
+    check = {k: (np.frombuffer(v, np.uint8) if isinstance(v, bytes) else v)
+             for k, v in fields.items()}
+    try:  # what read_rgl (and Mitsuba) would refuse is not written
+        _validate(os.fspath(path), check)
+    except RGLFormatError as exc:
+        raise ValueError(f"write_rgl: the material cannot be written as an RGL file: "
+                         f"{exc.problem.split('; ')[0]}") from None
     write_tensor_file(path, fields)

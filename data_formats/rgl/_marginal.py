@@ -3,7 +3,7 @@
 Source: ``include/mitsuba/core/distr_2d.h`` (classes ``Distribution2D`` and ``Marginal2D``) and
 ``include/mitsuba/core/warp.h`` of Mitsuba 3; the warp is the "marginal" construction used by the
 RGL material model (Dupuy & Jakob 2018, "An Adaptive Parameterization for Efficient Material
-Acquisition and Rendering", ACM TOG 37(6), §5).
+Acquisition and Rendering", ACM TOG 37(6)).
 
 The density is the bilinear interpolant of a ``H x W`` grid of values on the unit square
 (``x`` along the last, contiguous axis), node ``(i, j)`` at ``(j/(W-1), i/(H-1))``, optionally
@@ -178,19 +178,18 @@ class Marginal2D:
         lo, hi = (_EPS, _ONE_MINUS_EPS) if guard else (0.0, 1.0)
         x = np.clip(u[:, 0], lo, hi)
         y = np.clip(u[:, 1], lo, hi)
-        marg = self._lookup(self.marg, corners, np.broadcast_to(np.arange(h - 1), (n, h - 1)))
+        marg = sum(self.marg[sl] * wt[:, None] for sl, wt in corners)  # (N, h-1) rows
         if not self.normalized:
             y = y * marg[:, -1]
         row = np.count_nonzero(marg[:, :h - 2] < y[:, None], axis=1)
         y = y - np.where(row > 0, marg[np.arange(n), np.maximum(row - 1, 0)], 0.0)
-        off_c = row * (w - 1)
-        r0 = self._lookup(self.cond, corners, off_c + (w - 2))
-        r1 = self._lookup(self.cond, corners, off_c + 2 * (w - 1) - 1)
+        rows = self.cond.reshape(self.slices, h, w - 1)
+        c0 = sum(rows[sl, row] * wt[:, None] for sl, wt in corners)  # (N, w-1): CDF of row
+        c1 = sum(rows[sl, row + 1] * wt[:, None] for sl, wt in corners)  # and of the next
+        r0, r1 = c0[:, -1], c1[:, -1]
         y = self._sample_segment(y, h - 1, r0, r1)
         x = x * _lerp(r0, r1, y)
-        cols = off_c[:, None] + np.arange(w - 1)[None, :]
-        cond = _lerp(self._lookup(self.cond, corners, cols),
-                     self._lookup(self.cond, corners, cols + (w - 1)), y[:, None])
+        cond = _lerp(c0, c1, y[:, None])
         col = np.minimum(np.count_nonzero(cond < x[:, None], axis=1), w - 2)
         x = x - np.where(col > 0, cond[np.arange(n), np.maximum(col - 1, 0)], 0.0)
         v00, v10, v01, v11 = self._corner_values(corners, row * w + col)

@@ -1,7 +1,7 @@
 """The RGL material in memory: its fields, evaluation exactly as Mitsuba 3 renders it, and samples.
 
 Model (Dupuy & Jakob 2018, "An Adaptive Parameterization for Efficient Material Acquisition and
-Rendering", ACM TOG 37(6), §4-6; Mitsuba 3 ``src/bsdfs/measured.cpp``). Angles map to the unit
+Rendering", ACM TOG 37(6); Mitsuba 3 ``src/bsdfs/measured.cpp``). Angles map to the unit
 square by ``u_θ = sqrt(2θ/π)``, ``u_φ = (φ + π) / 2π`` (``theta2u``, ``phi2u``). For incidence
 ``ωi = (θi, φi)`` and half vector ``ωm = normalize(ωi + ωo)`` (``elevation`` is the stable
 ``2 asin(|ω - z| / 2)``):
@@ -13,13 +13,16 @@ square by ``u_θ = sqrt(2θ/π)``, ``u_φ = (φ + π) / 2π`` (``theta2u``, ``ph
   Jacobian ``2π² u_θ sin θm`` of the square), interpolated in the parameters ``(φi, θi)``;
 * ``f_r cos θo = R(s; φi, θi) · D(u_m) / (4 σ(u_wi))`` where ``R`` is the bilinear interpolant of
   the ``rgb`` table on the warped square (``s``), ``D`` of ``ndf`` and ``σ`` (projected area) of
-  ``sigma``; the factor ``D/(4σ)`` only when ``jacobian`` is set (paper eq. 12: the tables store
+  ``sigma``; the factor ``D/(4σ)`` only when ``jacobian`` is set (the paper's parameterization: the tables store
   ``f_r cos θo`` divided by the VNDF-to-``ωo`` density, which is smooth).
 
 Anisotropic files may store a reduced range of ``φi``: ``reduction = rint(2π / (φi[-1] - φi[0]))``
 (1, 2 or 4); with 2 the pair is rotated by π so that ``ωi.y ≤ 0``, with 4 mirrored in x and y
-so that ``ωi.x, ωi.y ≤ 0`` (``mulsign_neg``). Below the horizon (``cos θi ≤ 0`` or
-``cos θo ≤ 0``) the value is 0. Mitsuba's ``eval`` returns ``f_r cos θo``; :meth:`RGLMaterial.eval`
+so that ``ωi.x, ωi.y ≤ 0`` (``mulsign_neg``). For an isotropic file Mitsuba 3.9 leaves
+``m_reduction`` uninitialized, so it may apply either fold; both keep the relative azimuth's
+magnitude, and the tables :func:`~data_formats.rgl.synthesize_rgl` writes are symmetric in it, so
+Mitsuba's value does not depend on the fold; here no fold is applied. Below the horizon
+(``cos θi ≤ 0`` or ``cos θo ≤ 0``) the value is 0. Mitsuba's ``eval`` returns ``f_r cos θo``; :meth:`RGLMaterial.eval`
 returns ``f_r`` (divided by ``cos θo``). Arithmetic is float64 on the file's float32 tables.
 """
 
@@ -173,28 +176,37 @@ class RGLMaterial:
     def eval(self, wi, wo) -> np.ndarray:
         """``f_r(ωi, ωo)`` ``(N, 3)`` float64 in 1/sr (no cosine), exactly as Mitsuba 3's
         ``measured`` plugin evaluates it (module docstring) divided by ``cos θo``; 0 below the
-        horizon. ``wi``, ``wo``: ``(N, 3)`` unit vectors in the shading frame (z the normal)."""
+        horizon. ``wi``, ``wo``: ``(N, 3)`` unit vectors in the shading frame (z the normal).
+        A spectral file gives the linear sRGB of its spectra (:mod:`._spectral`)."""
+        return self._evaluate(wi, wo, None)
+
+    def eval_spectrum(self, wi, wo, wavelengths) -> np.ndarray:
+        """``f_r`` ``(N, k)`` of a spectral file at the wavelengths ``(k,)`` nm (or ``(N, k)``),
+        as Mitsuba's spectral variants evaluate it (the ``spectra`` table interpolated in the
+        wavelength, weights clamped at the ends)."""
+        if self.spectra is None:
+            raise ValueError("RGLMaterial.eval_spectrum: an RGB file has no spectra; use eval")
+        return self._evaluate(wi, wo, np.asarray(wavelengths, dtype=np.float64))
+
+    def _evaluate(self, wi, wo, wavelengths):
         wi = np.asarray(wi, dtype=np.float64)
         wo = np.asarray(wo, dtype=np.float64)
         if wi.shape != wo.shape or wi.ndim != 2 or wi.shape[1] != 3:
             raise ValueError(f"RGLMaterial.eval: wi and wo must both be (N, 3), got {wi.shape} "
                              f"and {wo.shape}")
-        out = np.zeros((len(wi), 3))
+        k = 3 if wavelengths is None else wavelengths.shape[-1]
+        if wavelengths is not None:
+            wavelengths = np.broadcast_to(wavelengths, (len(wi), k))
+        out = np.zeros((len(wi), k))
         for start in range(0, len(wi), _CHUNK):
             sl = slice(start, start + _CHUNK)
-            out[sl] = self._eval_chunk(wi[sl], wo[sl])
+            out[sl] = self._eval_chunk(wi[sl], wo[sl],
+                                       None if wavelengths is None else wavelengths[sl])
         return out
 
-    def _eval_chunk(self, wi, wo):
+    def _eval_chunk(self, wi, wo, wavelengths):
         active = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-        wi, wo = wi.copy(), wo.copy()
-        red = self.reduction
-        if red >= 2:
-            sy = wi[:, 1].copy()
-            sx = wi[:, 0].copy() if red == 4 else sy
-            for v in (wi, wo):
-                v[:, 0] = _mulsign_neg(v[:, 0], sx)
-                v[:, 1] = _mulsign_neg(v[:, 1], sy)
+        wi, wo = self._reduce(wi, wo)
         m = wi + wo
         m /= np.linalg.norm(m, axis=1, keepdims=True)
         theta_i, phi_i = elevation(wi), np.arctan2(wi[:, 1], wi[:, 0])
@@ -204,13 +216,24 @@ class RGLMaterial:
                        axis=1)
         u_m[:, 1] -= np.floor(u_m[:, 1])
         u_m = np.nan_to_num(u_m)  # inactive pairs (wo = -wi) only
-        warps, params = self._warps, [phi_i, theta_i]
-        sample, _ = warps["vndf"].invert(u_m, params)
-        spec = np.stack([w.eval(sample, params) for w in warps["rgb"]], axis=1)
+        params = [phi_i, theta_i]
+        geometry = self._warps_geometry
+        sample, _ = geometry["vndf"].invert(u_m, params)
+        if wavelengths is None:
+            spec = np.stack([w.eval(sample, params) for w in self._warps["rgb"]], axis=1)
+        else:
+            spec = np.stack([self._warp_spectra.eval(sample, params + [wavelengths[:, c]])
+                             for c in range(wavelengths.shape[1])], axis=1)
         if self.jacobian:
-            spec *= (warps["ndf"].eval(u_m) / (4.0 * warps["sigma"].eval(u_wi)))[:, None]
+            spec *= (geometry["ndf"].eval(u_m) / (4.0 * geometry["sigma"].eval(u_wi)))[:, None]
         cos_o = np.where(active, wo[:, 2], 1.0)
         return np.where(active[:, None], spec / cos_o[:, None], 0.0)
+
+    @functools.cached_property
+    def _warp_spectra(self):
+        """Mitsuba's ``Warp2D3`` on ``spectra``: parameters ``(φi, θi, λ)``."""
+        return Marginal2D(self.spectra, [self.phi_i, self.theta_i, self.wavelengths],
+                          normalize=False, enable_sampling=False)
 
     # -- the measurement pattern -----------------------------------------------------------------
 
@@ -241,8 +264,8 @@ class RGLMaterial:
         For every ``(φi, θi)`` slice and every node ``(x_k, y_j) = (k, j) / (n-1)`` of the
         reflectance table, ``u_m`` is the VNDF warp of the node (``Marginal2D.sample`` with the
         slice's parameters, as Mitsuba's ``sample`` maps it; :meth:`node_half_vectors`), ``ωm``
-        its direction (azimuth relative to ``φi`` when isotropic) and ``ωo = 2(ωi·ωm)ωm - ωi``. ``value`` is the node's
-        ``f_r`` (the table value times ``D/(4σ)`` when ``jacobian``, divided by ``cos θo``);
+        its direction (azimuth relative to ``φi`` when isotropic) and ``ωo = 2(ωi·ωm)ωm - ωi``.
+        ``value`` is the node's ``f_r`` (the table value times ``D/(4σ)`` when ``jacobian``, divided by ``cos θo``);
         ``valid`` is false below the horizon and where the file's ``valid`` marks the node.
         Arrays are flat over ``(n_φ, n_θ, n, n)``.
         """
@@ -334,16 +357,19 @@ class RGLMaterial:
         cell_o = area * 2 * np.pi**2 * u_m[:, 0] * sin_h * 4 * cos_im / np.maximum(pdf, 1e-300)
         return cell_i * cell_o / (4 * cos_im * sin_h * sin_d)
 
-    def pair_weights(self, wi, wm, pts, valid, *, count: int | None = None, min_hits: int = 8):
+    def pair_weights(self, wi, wm, pts, valid, *, count: int | None = None, min_hits: int = 6):
         """Each pair's share of the Rusinkiewicz angle domain, mean 1 over valid pairs
         (:meth:`to_samples` says which measure and why). ``count``: Monte Carlo points,
-        default 32 per pair within ``[2^20, 2^23]``."""
+        default 16 per pair within ``[2^20, 2^22]``."""
         if count is None:
-            count = int(np.clip(32 * len(wi), 1 << 20, 1 << 23))
+            count = int(np.clip(16 * len(wi), 1 << 20, 1 << 22))
         volume, hits = self._monte_carlo_shares(count)
         small = hits < min_hits
         if small.any():
-            point = self._pointwise_shares(wi, wm, pts)
+            # A cell hit fewer than min_hits times is almost surely smaller than this many
+            # hits' volume: the cap removes the pointwise estimate's excursions near its poles.
+            cap = (min_hits + 3 * np.sqrt(min_hits)) * np.pi**4 / count
+            point = np.minimum(self._pointwise_shares(wi, wm, pts), cap)
             volume = np.where(small & np.isfinite(point), point, volume)
         w = np.where(valid, volume, 0.0)
         mean = w[valid].mean() if valid.any() else 1.0
@@ -367,11 +393,12 @@ class RGLMaterial:
         would fit the peak and neglect the rest of the lobe (and the grazing slices).
 
         The share is measured, not modelled: a deterministic low-discrepancy sequence (Roberts'
-        R4, ``count`` points, 32 per pair by default) uniform in the four angles is mapped to
+        R4, ``count`` points, 16 per pair by default) uniform in the four angles is mapped to
         direction pairs, each is assigned to the pair that :meth:`eval` would read it from
         (nearest ``θi``/``φi`` slice, nearest node of the warped square after the VNDF
         inverse), and a pair's share is its count. Cells hit fewer than ``min_hits`` times
-        (the small cells of the peak) take the share of their own Jacobians instead: incidence
+        (the small cells of the peak) take the share of their own Jacobians instead (capped at
+        the volume of ``min_hits + 3 sqrt(min_hits)`` hits): incidence
         solid angle times outgoing solid angle (node area on the square over the density of
         ``ωo``, ``vndf_pdf / (2π² u_θ sin θm · 4 ωi·ωm)``, Mitsuba's ``pdf`` without the
         luminance), over ``4 cos θd sin θh sin θd`` (solid angles to angles); for cells with

@@ -1,10 +1,10 @@
 """A virtual RGL measurement: the ``.bsdf`` tables of any BRDF given as a NumPy callable.
 
-Follows the acquisition of Dupuy & Jakob 2018 (§4-5) with the model in place of the
+Follows the acquisition of Dupuy & Jakob 2018 with the model in place of the
 goniophotometer, and Mitsuba 3's ``measured`` plugin (``src/bsdfs/measured.cpp``) for what
 each table means:
 
-1. **NDF from retro-reflection** (paper §4.1): a microfacet BRDF seen back along ``ω`` is
+1. **NDF from retro-reflection** (as the paper measures it): a microfacet BRDF seen back along ``ω`` is
    ``f_r(ω, ω) = F D(ω) G1(ω)² / (4 cos²θ)`` and Smith's ``G1(ω) = cos θ / σ(ω)`` with the
    projected area ``σ(ω) = ∫ D(ωm) ⟨ω, ωm⟩₊ dωm``, so ``D ∝ f_r(ω, ω) σ[D](ω)²``: a fixed point,
    found by iterating from ``D = f_r(ω, ω)`` and normalizing ``∫ D cos θm dωm = 1`` after each
@@ -23,7 +23,17 @@ each table means:
    ``valid = 0``) where ``ωo`` is below the horizon. ``luminance`` is its luminance.
 
 Between nodes the file interpolates (bilinearly on the warped square, linearly in ``θi``, ``φi``):
-:meth:`RGLMaterial.eval` of the result reproduces ``brdf`` to within that interpolation error.
+:meth:`RGLMaterial.eval` of the result reproduces ``brdf`` at the nodes to float32 (1e-5) and
+elsewhere to within that interpolation error. Measured (``benchmarks/bench_rgl.py``, GGX with
+diffuse, 1M random pairs, ``θi, θo < 70°``, error ``|f_file - f| / (f + 1e-3)``): isotropic
+``α = 0.3`` at the defaults (10 ``θi`` slices, 32 x 32 tables): median 0.004, 99th percentile
+0.056, max 0.55; anisotropic ``α = (0.15, 0.4)`` with 13 ``φi`` slices: median 0.012, p99 0.26,
+max 3.7. The error is largest in and near the specular peak (isotropic, ``θh < 15°``: p99 0.27-0.29
+against 0.01-0.04 elsewhere), where the table on the warped square changes fastest (towards its
+``u_θ = 0`` edge), and grows between ``θi`` slices (median 0.002 on a slice, 0.005 midway) and,
+anisotropic, between the ``φi`` slices (30° apart). Near the horizon the tables interpolate
+towards the zeros stored below it: ``f_r cos θo`` is then off by up to a few 1e-3 absolute, which
+``f_r`` magnifies by ``1 / cos θo``.
 """
 
 from __future__ import annotations
