@@ -162,6 +162,24 @@ def test_start_reads_widths_and_axes_off_the_data(turn_deg):
     assert feat.alpha_x == pytest.approx(ax, rel=0.15) and feat.alpha_y == pytest.approx(ay, rel=0.15)
 
 
+def test_start_reads_the_axes_of_an_aps_gaussian_lobe():
+    """The same reading starts ``aps-gaussian`` (its hook maps the GGX widths to σ): the
+    axes of a lobe turned by 30°, the widths within the solver's reach."""
+    from brdffit.cli.synth import synthesize_material
+    from brdffit.fitting.start import guess, measure
+    from brdffit.models.evaluate import evaluate_model
+
+    s = synthesize_material(brdffit.get_model("ggx-aniso"), ANISO, **SMALL).to_samples()
+    truth = {"diffuse": [0.1] * 3, "f0": [0.8, 0.6, 0.4], "sigma_x": 0.12, "sigma_y": 0.4,
+             "frame_angle": float(np.radians(30.0))}
+    rgb = evaluate_model("aps-gaussian", truth, s.wi, s.wo)
+    start = guess(brdffit.get_model("aps-gaussian"),
+                  measure(rgb, s.wi, s.wo, np.asarray(s.valid, bool)))
+    assert np.degrees(start["frame_angle"]) == pytest.approx(30.0, abs=3.0)
+    for name in ("sigma_x", "sigma_y"):
+        assert 1 / 1.6 < start[name] / truth[name] < 1.6, (name, start[name])
+
+
 def test_half_vectors_in_one_plane_read_as_isotropic():
     """A MERL table's half vectors all lie in the x–z plane: the anisotropy is not determined,
     and the start keeps one width and the file's frame."""
@@ -183,9 +201,13 @@ def test_half_vectors_in_one_plane_read_as_isotropic():
     assert feat.alpha_x == feat.alpha_y == feat.alpha and feat.frame_angle == 0.0
 
 
-def test_frame_angle_turns_the_lobe():
-    """``ggx-aniso`` at ``frame_angle`` φ is the unturned lobe seen in a frame turned by φ, and
-    a lobe with equal widths does not depend on it."""
+@pytest.mark.parametrize("name,widths", [
+    ("ggx-aniso", {"alpha_x": 0.08, "alpha_y": 0.3}),
+    ("aps-gaussian", {"sigma_x": 0.12, "sigma_y": 0.4}),
+])
+def test_frame_angle_turns_the_lobe(name, widths):
+    """An anisotropic model at ``frame_angle`` φ is the unturned lobe seen in a frame turned by
+    φ, and a lobe with equal widths does not depend on it."""
     from brdffit.models.evaluate import evaluate_model
 
     rng = np.random.default_rng(0)
@@ -195,13 +217,14 @@ def test_frame_angle_turns_the_lobe():
     phi = 0.7
     c, s = np.cos(phi), np.sin(phi)
     turn = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])  # the frame's tangent at azimuth φ
-    base = {k: v for k, v in ANISO.items() if k != "frame_angle"}
+    base = {"diffuse": [0.1, 0.1, 0.1], "f0": [0.8, 0.6, 0.4], **widths}
     np.testing.assert_allclose(
-        evaluate_model("ggx-aniso", {**base, "frame_angle": phi}, wi @ turn.T, wo @ turn.T),
-        evaluate_model("ggx-aniso", {**base, "frame_angle": 0.0}, wi, wo), rtol=1e-9)
-    iso = {**base, "alpha_y": base["alpha_x"]}
-    np.testing.assert_allclose(evaluate_model("ggx-aniso", {**iso, "frame_angle": phi}, wi, wo),
-                               evaluate_model("ggx-aniso", iso, wi, wo), rtol=1e-9)
+        evaluate_model(name, {**base, "frame_angle": phi}, wi @ turn.T, wo @ turn.T),
+        evaluate_model(name, {**base, "frame_angle": 0.0}, wi, wo), rtol=1e-9)
+    first, second = list(widths)
+    iso = {**base, second: widths[first]}
+    np.testing.assert_allclose(evaluate_model(name, {**iso, "frame_angle": phi}, wi, wo),
+                               evaluate_model(name, iso, wi, wo), rtol=1e-6)
 
 
 # -- info, plot, synth, batch ------------------------------------------------------------------
