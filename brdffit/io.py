@@ -5,14 +5,14 @@ the input formats takes them from here: :func:`read_path` (``brdffit.fit``, the 
 ``brdffit batch``), the help texts and messages (:func:`formats_text`, :func:`suffixes_text`),
 and the tests, which are parametrized over it. A new format is one entry here.
 
-=========  ================  =====================================================
-suffix     holds             reader
-=========  ================  =====================================================
-``.binary`` MERL table       :func:`data_formats.merl.read_merl`
-``.csv``   sample list       :func:`data_formats.samplelist.read_samples`
-``.npz``   sample list       :func:`data_formats.samplelist.read_samples`
-``.bsdf``  RGL material      :func:`data_formats.rgl.read_rgl`
-=========  ================  =====================================================
+===========  ==============  ==============================================
+suffix       holds           reader
+===========  ==============  ==============================================
+``.binary``  MERL table      :func:`data_formats.merl.read_merl`
+``.csv``     sample list     :func:`data_formats.samplelist.read_samples`
+``.npz``     sample list     :func:`data_formats.samplelist.read_samples`
+``.bsdf``    RGL material    :func:`data_formats.rgl.read_rgl`
+===========  ==============  ==============================================
 
 Every reader returns an object with ``.to_samples()`` (a :class:`data_formats.SampleSet` of
 direction pairs), which is all the fitter needs. :func:`is_table` tells a MERL-layout table

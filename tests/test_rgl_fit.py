@@ -333,3 +333,10 @@ def test_synth_renders_a_fit_result_as_a_material(files, tmp_path, capsys):
     assert np.median(np.abs(got - truth) / truth) < 0.02
     assert main(["synth", "-o", str(tmp_path / "x.bsdf")]) == 2
     _one_line_error(capsys.readouterr().err, "--model", "--fit")
+
+
+def test_synth_writes_every_registered_format():
+    from brdffit.cli.synth import WRITERS
+    from brdffit.io import INPUT_SUFFIXES
+
+    assert set(WRITERS) == set(INPUT_SUFFIXES.values())

@@ -138,9 +138,37 @@ def synthesize_material(model, params, *, noise=0.0, seed=0, name="", isotropic=
                           isotropic=iso, name=name, **tables)
 
 
-#: Bytes each kind of output is expected to take (the free-space check before writing);
-#: ``None``: 200 bytes per sample of ``--samples``.
-OUTPUT_SIZES = {"MERL table": 34_992_012, "sample list": None, "RGL material": 64 << 20}
+def _merl_writer(model, params, args, out):
+    from data_formats.merl import write_merl
+
+    table = synthesize_table(model, params, noise=args.noise, seed=args.seed, name=out.stem)
+    return lambda tmp: write_merl(tmp, table)
+
+
+def _samples_writer(model, params, args, out):
+    from data_formats.samplelist import write_samples
+
+    samples = synthesize_samples(model, params, args.samples, noise=args.noise, seed=args.seed,
+                                 name=out.stem)
+    return lambda tmp: write_samples(tmp, samples)
+
+
+def _material_writer(model, params, args, out):
+    from data_formats.rgl import write_rgl
+
+    material = synthesize_material(model, params, noise=args.noise, seed=args.seed,
+                                   name=out.stem)
+    return lambda tmp: write_rgl(tmp, material)
+
+
+#: What each kind of input (:data:`brdffit.io.READERS`) is written by: ``(bytes expected,
+#: ``None`` for 200 per sample of ``--samples``; ``maker(model, params, args, out)`` → a
+#: function writing the file at a path)``.
+WRITERS = {
+    "MERL table": (34_992_012, _merl_writer),
+    "sample list": (None, _samples_writer),
+    "RGL material": (64 << 20, _material_writer),
+}
 
 
 def _shown(value) -> str:
@@ -178,26 +206,9 @@ def run(args) -> int:
         raise UsageError(f"{out}: unknown output format {suffix!r}; use {suffixes_text()}")
     if kind == "sample list":
         _check_samples(args.samples)
-    size = OUTPUT_SIZES.get(kind) or 200 * args.samples
-    with check_outputs([out], args.force, {out: size}) as outputs:
-        if kind == "MERL table":
-            from data_formats.merl import write_merl
-
-            table = synthesize_table(model, params, noise=args.noise, seed=args.seed,
-                                     name=out.stem)
-            outputs.write(out, lambda tmp: write_merl(tmp, table))
-        elif kind == "RGL material":
-            from data_formats.rgl import write_rgl
-
-            material = synthesize_material(model, params, noise=args.noise, seed=args.seed,
-                                           name=out.stem)
-            outputs.write(out, lambda tmp: write_rgl(tmp, material))
-        else:
-            from data_formats.samplelist import write_samples
-
-            samples = synthesize_samples(model, params, args.samples, noise=args.noise,
-                                         seed=args.seed, name=out.stem)
-            outputs.write(out, lambda tmp: write_samples(tmp, samples))
+    size, maker = WRITERS[kind]
+    with check_outputs([out], args.force, {out: size or 200 * args.samples}) as outputs:
+        outputs.write(out, maker(model, params, args, out))
         outputs.publish()
     if not args.quiet:
         shown = ", ".join(f"{k}={_shown(v)}" for k, v in params.items()) or "defaults"
