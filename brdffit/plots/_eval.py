@@ -26,13 +26,25 @@ from ..io import is_table  # noqa: F401  (re-exported for the figures)
 from ..models.evaluate import CHUNK, evaluate_model  # noqa: F401  (re-exported for the figures)
 
 
+_VIEW: list = []  # [(weak reference to the data, its samples)]: the last one made
+
+
 def sample_view(data):
     """The measured points that the binned figures read: a table or a sample set as it is, any
     other measurement (an RGL material) as its ``to_samples()`` (the file's own measurement
-    pattern)."""
+    pattern), made once for the figures of one material (the last one is kept)."""
+    import weakref
+
     if is_table(data) or (hasattr(data, "wi") and hasattr(data, "wo")):
         return data
-    return data.to_samples()
+    if _VIEW and _VIEW[0][0]() is data:
+        return _VIEW[0][1]
+    samples = data.to_samples()
+    try:
+        _VIEW[:] = [(weakref.ref(data), samples)]
+    except TypeError:  # not weakly referable: not kept
+        _VIEW.clear()
+    return samples
 
 
 def data_name(data, fallback: str = "measured") -> str:
