@@ -134,10 +134,12 @@ def _global_options(parser, common) -> None:
 def _user_errors() -> tuple[type[BaseException], ...]:
     """Exception types that mean "the user can fix this": one line, exit code 2."""
     from data_formats.samplelist import SampleListFormatError
+    from data_formats.tensorfile import TensorFileError
 
     from ..errors import BrdffitError
 
-    errors: list = [BrdffitError, SampleListFormatError, OSError]
+    # the readers' own error types (brdffit.io.READERS); TensorFileError covers RGLFormatError
+    errors: list = [BrdffitError, SampleListFormatError, TensorFileError, OSError]
     try:
         from data_formats.merl import MERLFormatError
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..errors import BrdffitError
 
-from ..io import INPUT_SUFFIXES, read_path  # noqa: F401 (INPUT_SUFFIXES: used by synth)
+from ..io import read_path
 
 
 class UsageError(BrdffitError):
@@ -86,7 +86,7 @@ def check_params(model, values: dict, flag: str) -> dict:
 
 # -- inputs -----------------------------------------------------------------------------------
 def read_input(path: str):
-    """A MERL table (``.binary``) or a sample list (``.csv``, ``.npz``), by suffix
+    """The input at ``path`` (any format of :data:`brdffit.io.READERS`), read by its suffix
     (:func:`brdffit.io.read_path`, the reader dispatch ``brdffit.fit`` uses for a path); only
     a regular file is opened (:func:`check_readable`)."""
     p = Path(path)
@@ -105,11 +105,6 @@ def check_readable(path: Path) -> None:
     if not stat.S_ISREG(mode):
         raise UsageError(f"{path}: is {describe_mode(mode)}, not a regular file; copy the data "
                          f"into a file and pass that")
-
-
-def is_table(data) -> bool:
-    """True for a MERL table (has a grid), False for a plain sample list."""
-    return hasattr(data, "valid") and getattr(data, "rgb", None) is not None and data.rgb.ndim == 4
 
 
 # -- outputs ----------------------------------------------------------------------------------
