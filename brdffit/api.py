@@ -1,6 +1,7 @@
 """``brdffit.fit``: the notebook-facing fit, around :func:`brdffit.fitting.fit`.
 
-What it adds to the low-level fit (whose arguments it passes on unchanged):
+What it adds to the low-level fit (to which it hands the options checked once, as a
+:class:`~brdffit.fitting.Settings`):
 
 * **a path**: ``table`` may be a ``str`` or ``os.PathLike``, read by suffix through
   :func:`brdffit.io.read_path` (the dispatch the command line uses);
@@ -156,7 +157,8 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
     callback, bar = resolve(progress)
     try:
         with jax.enable_x64(True):
-            result = fitting.fit(data, model, progress=callback, throw=throw, **solve_options)
+            settings = fitting.Settings.of(solve_options)  # the defaults of float64
+            result = fitting.fit(data, model, settings, progress=callback, throw=throw)
     except FitError as err:
         if err.result is not None:  # a fit that ran: its result as throw=False returns it
             err.result = _finished(err.result, data, path, model, options, tied)
