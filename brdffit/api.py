@@ -136,10 +136,8 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             :class:`~brdffit.fitting.FitResult` (``success=False``, ``status``, ``message``;
             provenance recorded). ``throw=False`` returns that result instead (scipy's and
             lmfit's convention); a fit that cannot start (no usable cells) raises either way.
-        **kwargs: the options of :func:`brdffit.fitting.fit` (``loss``, ``solver``, ``init``,
-            ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,
-            ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
-            ``covariance``, ``weighting``; :class:`brdffit.fitting.Settings` describes each).
+        **kwargs: the options, by name: the fields of :class:`~brdffit.config.FitOptions`
+            but ``model`` (:class:`brdffit.fitting.Settings` describes each).
     """
     import jax
 

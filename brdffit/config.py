@@ -1,4 +1,4 @@
-"""TOML presets → fit options: the one place where option *names* meet the library.
+"""The fit options (:class:`FitOptions`, one field each) and TOML presets that load into them.
 
 A preset (``configs/<name>.toml``) names some of the options of :func:`brdffit.fit`; what it does
 not name keeps the default that lives in code. Layers merge left to right (preset, then
@@ -177,6 +177,12 @@ def check_fit_options(options: Mapping, label=None, ranges=None) -> Mapping:
 @dataclasses.dataclass(frozen=True)
 class FitOptions:
     """Options for :func:`brdffit.fit`; ``None`` (or an empty mapping) means "the code's default".
+
+    The one owner of the options: each field's :class:`Option` (``metadata["option"]``) holds
+    its default, range, choices, preset key and flag, from which come :data:`OPTIONS`,
+    :data:`FIT_OPTION_RANGES`, the preset schema (:func:`parse_config`), the code's defaults
+    (:data:`CODE_DEFAULTS`), the ``brdffit fit`` flags and the words of the advice. A new
+    option is a new field.
 
     ``solver`` holds the solver name; ``rtol``, ``atol``, ``ftol``, ``max_steps`` its
     tolerances, ``precision`` the model evaluation's dtype; ``covariance`` how standard errors

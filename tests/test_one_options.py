@@ -77,3 +77,15 @@ def test_brdffit_fit_checks_its_options_once(monkeypatch, tmp_path):
             monkeypatch.setattr(module, "check_fit_options", counted)
     brdffit.fit(path, "ggx", cutoff=80, max_steps=3, throw=False)
     assert len(calls) == 1, calls
+
+
+def test_the_posterior_takes_fit_options_and_mcmc_options():
+    from brdffit.posterior import McmcOptions
+    from brdffit.posterior.sampler import _split_options
+
+    fit, mcmc = _split_options({"cutoff": 80}, McmcOptions(nwalkers=16), {"nsteps": 99,
+                                                                          "loss": "cosine"})
+    assert (fit.cutoff, fit.loss) == (80, "cosine")
+    assert (mcmc.nwalkers, mcmc.nsteps, mcmc.burn) == (16, 99, McmcOptions().burn)
+    with pytest.raises(TypeError, match="unknown option.*nwalker"):
+        _split_options(None, None, {"nwalker": 8})

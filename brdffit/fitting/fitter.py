@@ -52,11 +52,10 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             :mod:`.outcome`); the error carries the result (``err.result``). With ``False``
             that result is returned: ``success=False``, the status and a message saying what
             to do.
-        **kwargs: the options, each described with its default in
-            :class:`~brdffit.fitting.options.Settings`: ``loss``, ``solver``, ``init``,
-            ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,
-            ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
-            ``covariance``, ``weighting``. All are checked before the table is read.
+        **kwargs: the options, by name: the fields of :class:`~brdffit.config.FitOptions`
+            but ``model``, each described with its default in
+            :class:`~brdffit.fitting.options.Settings`. All are checked before the table is
+            read.
     """
     if isinstance(options, Settings) and not kwargs:
         settings = options  # checked and resolved already (brdffit.fit)
