@@ -255,7 +255,7 @@ class FitOptions:
         out = {}
         for f in dataclasses.fields(self):
             mine, theirs = getattr(self, f.name), getattr(later, f.name)
-            if f.name in ("init", "fixed", "bounds"):
+            if f.name in _TABLES:
                 out[f.name] = {**mine, **theirs}
             elif f.name == "sources":
                 out[f.name] = mine + theirs
