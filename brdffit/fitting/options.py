@@ -5,8 +5,9 @@
 arguments, the keywords winning option by option, and refuses unknown names, out-of-range
 numbers (:func:`brdffit.config.check_fit_options`) and unknown ``covariance``/``precision``/
 ``weighting`` names (:func:`brdffit.config.canonical_choices`) before any work: every option's
-default, range and choices live in one place, :class:`brdffit.config.FitOptions`. :meth:`Settings.of` then
-resolves what is left: the loss by name, the precision and the tolerances that depend on it.
+default, range and choices live in one place, :class:`brdffit.config.FitOptions`.
+:meth:`Settings.of` then resolves what is left: the loss by name, the precision and the
+tolerances that depend on it; :func:`brdffit.fitting.fit` takes a ``Settings`` as it is.
 """
 
 from __future__ import annotations
