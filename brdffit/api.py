@@ -1,6 +1,7 @@
 """``brdffit.fit``: the notebook-facing fit, around :func:`brdffit.fitting.fit`.
 
-What it adds to the low-level fit (whose arguments it passes on unchanged):
+What it adds to the low-level fit (to which it hands the options checked once, as a
+:class:`~brdffit.fitting.Settings`):
 
 * **a path**: ``table`` may be a ``str`` or ``os.PathLike``, read by suffix through
   :func:`brdffit.io.read_path` (the dispatch the command line uses);
@@ -136,10 +137,8 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             :class:`~brdffit.fitting.FitResult` (``success=False``, ``status``, ``message``;
             provenance recorded). ``throw=False`` returns that result instead (scipy's and
             lmfit's convention); a fit that cannot start (no usable cells) raises either way.
-        **kwargs: the options of :func:`brdffit.fitting.fit` (``loss``, ``solver``, ``init``,
-            ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,
-            ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
-            ``covariance``, ``weighting``; :class:`brdffit.fitting.Settings` describes each).
+        **kwargs: the options, by name: the fields of :class:`~brdffit.config.FitOptions`
+            but ``model`` (:class:`brdffit.fitting.Settings` describes each).
     """
     import jax
 
@@ -157,7 +156,8 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
     callback, bar = resolve(progress)
     try:
         with jax.enable_x64(True):
-            result = fitting.fit(data, model, progress=callback, throw=throw, **solve_options)
+            settings = fitting.Settings.of(solve_options)  # the defaults of float64
+            result = fitting.fit(data, model, settings, progress=callback, throw=throw)
     except FitError as err:
         if err.result is not None:  # a fit that ran: its result as throw=False returns it
             err.result = _finished(err.result, data, path, model, options, tied)

@@ -48,7 +48,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..config import check_fit_options
+from ..config import OPTIONS
 from ..errors import ConfigError, FitError, UnknownNameError
 from .losses import Loss
 
@@ -151,8 +151,7 @@ class Selection:
 
 def _static_rows(wi, wo, cutoff):
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    if cutoff is not None:
-        check_fit_options({"cutoff": cutoff})
+    if cutoff is not None:  # in range: checked with the other options (brdffit.config)
         cmin = np.cos(np.radians(float(cutoff)))
         ok &= (wi[:, 2] >= cmin) & (wo[:, 2] >= cmin)
     return np.flatnonzero(ok)
@@ -186,8 +185,9 @@ def _gather(a, rows, n_rows: int, fill, dtype):
     return out
 
 
-#: How samples are weighted against each other (:func:`measure_weight`); the first is the default.
-WEIGHTINGS = ("angles", "samples")
+#: How samples are weighted against each other (:func:`measure_weight`); the first is the default
+#: (the choices of the ``weighting`` option, :data:`brdffit.config.OPTIONS`).
+WEIGHTINGS = OPTIONS["weighting"].choices
 
 
 def measure_weight(samples, rows, weighting: str = "angles"):
