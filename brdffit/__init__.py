@@ -31,7 +31,7 @@ _LAZY = {
     "available_models": ".models",
     "get_model": ".models",
     "register": ".models",
-    "FitResult": ".fitting",
+    "FitResult": ".api",
     "fit": ".api",
     "fit_report": ".fitting",
     "get_loss": ".fitting",

@@ -434,7 +434,7 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
                 files = table.write(whole, outdir)
     results = None
     if want_results:
-        from ..fitting import FitResult
+        from ..api import FitResult
 
         results = [None if outputs[i]["result"] is None else
                    FitResult.from_dict(outputs[i]["result"]) for i in sorted(outputs)]

@@ -65,8 +65,8 @@ from .gltf import gltf_document, params_from_gltf
 from .mitsuba import is_mitsuba_model, mitsuba_dict, mitsuba_xml
 
 __all__ = ["TARGETS", "NATIVE_FOR", "ApproximationWarning", "Exported", "NoExactCounterpart",
-           "NotExportable", "export", "gltf_document", "mitsuba_dict", "mitsuba_xml",
-           "params_from_gltf"]
+           "NotExportable", "export", "export_payload", "gltf_document", "mitsuba_dict",
+           "mitsuba_xml", "params_from_gltf", "render_merl"]
 
 #: Export targets and the test "is this model the target's own BSDF?".
 TARGETS = {
@@ -188,7 +188,7 @@ def export(result, to: str, *, approximate: bool = False, **approx_options) -> E
 
 
 def export_payload(result, to: str, *, approximate: bool = False, **approx_options):
-    """:func:`export`'s payload alone (what ``FitResult.export`` returns); an approximation is
+    """:func:`export`'s payload alone (what :meth:`brdffit.FitResult.export` returns); an approximation is
     reported as an :class:`ApproximationWarning` carrying its metrics."""
     out = export(result, to, approximate=approximate, **approx_options)
     if out.approximation is not None:
@@ -198,3 +198,18 @@ def export_payload(result, to: str, *, approximate: bool = False, **approx_optio
             f"{out.model_name} approximates {source}: "
             + metrics_text(m)), stacklevel=3)
     return out.payload
+
+
+def render_merl(result, name: str | None = None, shape=None):
+    """The fitted model of ``result`` on a whole MERL grid (cell corners), as a ``MERLTable``.
+
+    Cells below the horizon are missing, as in the database (``data_formats.merl.synthesize``);
+    write it with ``data_formats.merl.write_merl`` for a fitted ``.binary``.
+    """
+    from data_formats.merl import MERL_SHAPE, synthesize
+
+    from ..models.evaluate import evaluate_model
+
+    fitted = result.model
+    return synthesize(lambda wi, wo: evaluate_model(fitted.model, fitted.params, wi, wo),
+                      name=name or f"{result.model_name}-fit", shape=shape or MERL_SHAPE)
