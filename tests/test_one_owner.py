@@ -4,7 +4,9 @@ one registry, no package reaches into another's private names."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from brdffit.export import TARGETS
 from data_formats.merl import MERLTable, synthesize
 
 
@@ -26,3 +28,160 @@ def test_the_linear_lookup_grid_is_a_pure_function_the_table_keeps():
     other = MERLTable.from_rgb(np.asarray(table.rgb) * 2.0, table.valid)
     np.testing.assert_allclose(other.lookup(wi, wi[::-1], method="linear"), 2.0 * before)
     assert not hasattr(table, "_interp_cache")
+
+
+# -- exporters: one registry, every entry tested -----------------------------------------------
+def _native_result(model_name: str, table: str = "toy"):
+    """A converged-looking result of ``model_name`` at its default parameters (no fit)."""
+    import brdffit
+    from brdffit.fitting import FitResult
+
+    model = brdffit.get_model(model_name)
+    full = model.complete({})
+    values = {k: (np.asarray(v, float).tolist() if np.ndim(v) else float(v))
+              for k, v in full.items()}
+    x = np.concatenate([np.ravel(np.asarray(full[p.name], float)) for p in model.params])
+    names = model.flat_names()
+    return FitResult(
+        model_name=model_name, params=values, stderr={k: 0.0 for k in values}, names=names, x=x,
+        cov=np.zeros((len(x), len(x))), free=names, fixed=[], at_bound={}, cost=1e-3,
+        metrics={"rmse": 0.01, "rmse_cosine": 0.01, "rmse_log": 0.01, "rel_error": 0.01},
+        success=True, status="successful", message="", steps=3, starts=[1e-3], loss="log",
+        solver="lm", n_cells=1000, n_total=1000, init=values, wall_time=0.1, timings={},
+        table=table)
+
+
+def _well_formed(text: str):
+    import json
+    import xml.etree.ElementTree as ET
+
+    if text.lstrip().startswith("<"):
+        return ET.fromstring(text)
+    return json.loads(text, parse_constant=lambda token: pytest.fail(f"{token} is not JSON"))
+
+
+def test_the_command_line_offers_the_registry():
+    from brdffit.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.choices and "export" in a.choices)
+    to = next(a for a in sub.choices["export"]._actions if a.dest == "to")
+    assert list(to.choices) == list(TARGETS)
+    assert all(name in sub.choices["export"].description for name in TARGETS)
+
+
+@pytest.mark.parametrize("name", sorted(TARGETS))
+def test_every_target_exports_its_native_model_and_refuses_another(name, tmp_path, capsys):
+    from brdffit.cli import main
+    from brdffit.export import NoExactCounterpart, NotExportable, export
+
+    target = TARGETS[name]
+    result = _native_result(target.native)
+    assert target.is_native(target.native)
+    out = export(result, name)
+    assert out.model_name == target.native and out.approximation is None
+    _well_formed(out.text())
+    with pytest.raises(NoExactCounterpart, match=rf"{target.renderer}.*--model {target.native}"):
+        export(_native_result("ggx"), name)
+    first = next(iter(result.params))
+    with pytest.raises(NotExportable, match=rf"{first}.*not a finite number"):
+        export((target.native, {first: float("nan")}), name)
+    # and the command line writes it
+    src, dst = tmp_path / "r.json", tmp_path / "material.out"
+    result.to_json(src)
+    assert main(["export", str(src), "--to", name.upper(), "-o", str(dst), "-q"]) == 0
+    assert dst.read_text() == out.text()
+
+
+def test_an_exporter_is_one_registry_entry(monkeypatch, tmp_path):
+    """A new target needs its writer and its entry, nothing else: the API, the command line's
+    choices and help, and the tests above take it from :data:`brdffit.export.TARGETS`."""
+    from brdffit.cli import main
+    from brdffit.export import Target, export
+
+    toy = Target("toy-text", "one line per parameter", "Toy", "gltf-pbr",
+                 lambda model: model == "gltf-pbr",
+                 lambda model, params, note: "".join(f"{k} {v}\n" for k, v in params.items()))
+    monkeypatch.setitem(TARGETS, toy.name, toy)
+    result = _native_result("gltf-pbr")
+    assert export(result, "toy-text").text().startswith("base_color ")
+    src, dst = tmp_path / "r.json", tmp_path / "m.txt"
+    result.to_json(src)
+    assert main(["export", str(src), "--to", "toy-text", "-o", str(dst), "-q"]) == 0
+    assert dst.read_text() == export(result, "toy-text").text()
+
+
+# -- no package reaches into another's private names -------------------------------------------
+#: Private modules other packages may import, and why.
+SHARED_PRIVATE = {
+    # the physics layer's vector helpers (rank 0 of brdffit.terms), written for the models
+    "brdffit.terms._math": "brdffit.models",
+}
+
+
+def _private(part: str) -> bool:
+    return part.startswith("_") and not part.startswith("__")
+
+
+def private_imports(module: str, source: str, is_package: bool) -> list[str]:
+    """Imports in ``module`` of an underscore name of another module, or of a private module
+    (``pkg._mod``) from outside its package ``pkg``, one line each."""
+    import ast
+
+    from test_layers import is_module
+
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level:
+            base = module.split(".")[: len(module.split(".")) - node.level + is_package]
+            package = ".".join(base + ([node.module] if node.module else []))
+        else:
+            package = node.module or ""
+        if package.split(".")[0] not in ("brdffit", "data_formats"):
+            continue
+        for alias in node.names:
+            target = f"{package}.{alias.name}"
+            if not is_module(target):
+                if _private(alias.name):
+                    out.append(f"{module} (line {node.lineno}) imports {alias.name} from "
+                               f"{package}: a private name; make it public or move the code")
+                target = package
+            parts = target.split(".")
+            for i, part in enumerate(parts):
+                owner = ".".join(parts[:i])
+                if _private(part) and not (module == owner or module.startswith(owner + ".")):
+                    shared = SHARED_PRIVATE.get(".".join(parts[: i + 1]), "")
+                    if not (shared and (module == shared or module.startswith(shared + "."))):
+                        out.append(f"{module} (line {node.lineno}) imports {target}: private to "
+                                   f"{owner}; import its public surface")
+                    break
+    return list(dict.fromkeys(out))
+
+
+def test_no_package_imports_private_names_of_another():
+    from test_layers import sources
+
+    found = [v for name, src, pkg in sources() for v in private_imports(name, src, pkg)]
+    assert not found, "\n".join(found)
+
+
+@pytest.mark.parametrize("module, source, message", [
+    ("brdffit.config", "from data_formats._files import open_regular", "private to data_formats"),
+    ("brdffit.export.render", "from ..plots import _style", "private to brdffit.plots"),
+    ("brdffit.models.x", "from .registry import _REGISTRY", "imports _REGISTRY from"),
+    ("brdffit.cli.export", "from .plotting import _read_result", "imports _read_result from"),
+])
+def test_a_private_import_is_reported(module, source, message):
+    found = private_imports(module, source, False)
+    assert len(found) == 1 and message in found[0], found
+
+
+@pytest.mark.parametrize("module, source", [
+    ("data_formats.merl._table", "from ._lookup import gather_grid"),
+    ("brdffit.models.disney", "from ..terms._math import dot"),
+    ("brdffit.cli.export", "from data_formats.files import writing"),
+])
+def test_a_public_or_own_import_passes(module, source):
+    assert private_imports(module, source, False) == []
