@@ -33,22 +33,9 @@ def test_the_linear_lookup_grid_is_a_pure_function_the_table_keeps():
 # -- exporters: one registry, every entry tested -----------------------------------------------
 def _native_result(model_name: str, table: str = "toy"):
     """A converged-looking result of ``model_name`` at its default parameters (no fit)."""
-    import brdffit
-    from brdffit.fitting import FitResult
+    from test_hostile_exports import _result
 
-    model = brdffit.get_model(model_name)
-    full = model.complete({})
-    values = {k: (np.asarray(v, float).tolist() if np.ndim(v) else float(v))
-              for k, v in full.items()}
-    x = np.concatenate([np.ravel(np.asarray(full[p.name], float)) for p in model.params])
-    names = model.flat_names()
-    return FitResult(
-        model_name=model_name, params=values, stderr={k: 0.0 for k in values}, names=names, x=x,
-        cov=np.zeros((len(x), len(x))), free=names, fixed=[], at_bound={}, cost=1e-3,
-        metrics={"rmse": 0.01, "rmse_cosine": 0.01, "rmse_log": 0.01, "rel_error": 0.01},
-        success=True, status="successful", message="", steps=3, starts=[1e-3], loss="log",
-        solver="lm", n_cells=1000, n_total=1000, init=values, wall_time=0.1, timings={},
-        table=table)
+    return _result(model_name, table, {})
 
 
 def _well_formed(text: str):
@@ -185,3 +172,19 @@ def test_a_private_import_is_reported(module, source, message):
 ])
 def test_a_public_or_own_import_passes(module, source):
     assert private_imports(module, source, False) == []
+
+
+# -- a result is data; its uses live above the fitting layer -----------------------------------
+def test_the_fitting_record_is_data_and_brdffit_fitresult_adds_its_uses():
+    import brdffit
+    from brdffit import fitting
+
+    made = _native_result("gltf-pbr")
+    record = fitting.FitResult(**{f: getattr(made, f) for f in fitting.FitResult.__dataclass_fields__})
+    assert not any(hasattr(record, m) for m in ("plot", "export", "render_merl"))
+    text = record.to_json()
+    result = brdffit.FitResult.from_json(text)
+    assert type(result) is brdffit.FitResult and isinstance(result, fitting.FitResult)
+    assert result.to_json() == text == brdffit.FitResult.of(record).to_json()  # same JSON
+    assert result.export("gltf") == brdffit.export.export(record, "gltf").payload
+    assert fitting.FitResult.from_json(text).summary() == result.summary()
