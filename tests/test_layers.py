@@ -239,7 +239,8 @@ def test_the_scanner_resolves_real_imports():
      "brdffit.export is built on brdffit.fitting"),
     ("brdffit.fitting.result", "def f():\n    from ..plots import plot_result",
      "brdffit.plots is built on brdffit.fitting"),
-    ("brdffit.export.gltf", "from ..api import FitResult", "brdffit.api is built on brdffit.export"),
+    ("brdffit.export.gltf", "from ..api import FitResult",
+     "brdffit.api is built on brdffit.export"),
 ])
 def test_an_upward_import_is_reported(module, source, message):
     found = violations(module, source, False, lazy_exports())

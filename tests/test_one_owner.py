@@ -180,7 +180,8 @@ def test_the_fitting_record_is_data_and_brdffit_fitresult_adds_its_uses():
     from brdffit import fitting
 
     made = _native_result("gltf-pbr")
-    record = fitting.FitResult(**{f: getattr(made, f) for f in fitting.FitResult.__dataclass_fields__})
+    fields = fitting.FitResult.__dataclass_fields__
+    record = fitting.FitResult(**{f: getattr(made, f) for f in fields})
     assert not any(hasattr(record, m) for m in ("plot", "export", "render_merl"))
     text = record.to_json()
     result = brdffit.FitResult.from_json(text)

@@ -208,7 +208,8 @@ def export(result, to: str, *, approximate: bool = False, **approx_options) -> E
 
     ``to`` is a name in :data:`TARGETS`. Raises :class:`NoExactCounterpart` when the model is
     not the target's BSDF and ``approximate`` is false; with ``approximate=True`` it fits the
-    target's ``native`` model to the fitted model (options passed to :func:`~brdffit.export.approximate.approximate`).
+    target's ``native`` model to the fitted model (options passed to
+    :func:`~brdffit.export.approximate.approximate`).
     Raises :class:`NotExportable` for a parameter that is not finite.
     """
     from ..models import get_model
@@ -235,8 +236,8 @@ def export(result, to: str, *, approximate: bool = False, **approx_options) -> E
 
 
 def export_payload(result, to: str, *, approximate: bool = False, **approx_options):
-    """:func:`export`'s payload alone (what :meth:`brdffit.FitResult.export` returns); an approximation is
-    reported as an :class:`ApproximationWarning` carrying its metrics."""
+    """:func:`export`'s payload alone (what :meth:`brdffit.FitResult.export` returns); an
+    approximation is reported as an :class:`ApproximationWarning` carrying its metrics."""
     out = export(result, to, approximate=approximate, **approx_options)
     if out.approximation is not None:
         m = out.approximation.metrics
