@@ -51,7 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
-from data_formats._files import NotRegularFileError, open_regular
+from data_formats.files import NotRegularFileError, open_regular
 
 from .errors import ConfigError, UnknownNameError, canonical_name
 
