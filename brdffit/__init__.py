@@ -8,10 +8,13 @@ squares), :mod:`brdffit.posterior` (emcee), :mod:`brdffit.export`, :mod:`brdffit
 :mod:`brdffit.cli`.
 
 The names below load their modules on first use (PEP 562), so ``import brdffit`` and
-``brdffit --help`` do not pay for importing JAX. The library never changes ``jax.config``:
-:func:`brdffit.fit` and :func:`brdffit.sample_posterior` run inside ``jax.enable_x64(True)``
-(float64 for the duration of the call, the global setting untouched), and the low-level
-:func:`brdffit.fitting.fit` uses whatever the caller set.
+``brdffit --help`` do not pay for importing JAX. The library never changes ``jax.config``'s
+numerics: :func:`brdffit.fit` and :func:`brdffit.sample_posterior` run inside
+``jax.enable_x64(True)`` (float64 for the duration of the call, the global setting untouched),
+and the low-level :func:`brdffit.fitting.fit` uses whatever the caller set. The one setting
+they make, at their first call and never at import, is JAX's persistent compilation cache
+folder (:mod:`brdffit.compilation_cache`: a per-user folder, an opt-out, left alone when the
+user chose one).
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ _LAZY = {
     "register": ".models",
     "FitResult": ".fitting",
     "fit": ".api",
+    "fit_report": ".fitting",
     "get_loss": ".fitting",
     "fit_many": ".batch",
     "PosteriorResult": ".posterior",

@@ -12,7 +12,12 @@ What it adds to the low-level fit (whose arguments it passes on unchanged):
 * **monochrome data**: a sample list with one value column fits a grey model
   (:mod:`brdffit.grey`);
 * **provenance**: the result's ``provenance`` records the input (path, SHA-256), every option
-  with its defaults resolved, the versions of brdffit, JAX and optimistix, and the date.
+  with its defaults resolved, the versions of brdffit, JAX and optimistix, and the date;
+* **the persistent compilation cache**, turned on before the first fit of a process
+  (:func:`brdffit.compilation_cache.ensure`: a per-user folder, opt-out), so a new process
+  loads the programs an earlier one compiled;
+* **a failed fit's result**: with ``throw=True`` the :class:`~brdffit.errors.FitError` of a
+  fit that ran carries the result (``err.result``), finished as ``throw=False`` returns it.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ import os
 import platform
 from pathlib import Path
 
+from .errors import FitError
 from .io import is_path, read_path, sha256
 
 
@@ -124,18 +130,20 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             override it, option by option.
         progress: ``True`` (a ``tqdm.auto`` bar), ``None``/``False``, or a callable
             ``progress(event, info)`` (events in :func:`brdffit.fitting.fit`).
-        throw: raise :class:`~brdffit.errors.FitError` when the fit does not converge.
+        throw: raise :class:`~brdffit.errors.FitError` when the fit does not converge or
+            the data do not determine the model; the error's ``result`` is the failed fit's
+            :class:`~brdffit.fitting.FitResult` (``success=False``, ``status``, ``message``;
+            provenance recorded). ``throw=False`` returns that result instead (scipy's and
+            lmfit's convention); a fit that cannot start (no usable cells) raises either way.
         **kwargs: the options of :func:`brdffit.fitting.fit` (``loss``, ``solver``, ``init``,
             ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,
             ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
             ``covariance``, ``weighting``; :class:`brdffit.fitting.Settings` describes each).
     """
-    import dataclasses
-
     import jax
 
-    from . import fitting
-    from .grey import is_monochrome, tie_options, untie
+    from . import compilation_cache, fitting
+    from .grey import is_monochrome, tie_options
     from .models.registry import get_model
     from .progress import resolve
 
@@ -144,13 +152,28 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
     solve_options, tied = options, {}
     if is_monochrome(data):
         solve_options, tied = tie_options(get_model(model), options)
+    compilation_cache.ensure()
     callback, bar = resolve(progress)
     try:
         with jax.enable_x64(True):
             result = fitting.fit(data, model, progress=callback, throw=throw, **solve_options)
+    except FitError as err:
+        if err.result is not None:  # a fit that ran: its result as throw=False returns it
+            err.result = _finished(err.result, data, path, model, options, tied)
+        raise
     finally:
         if bar is not None:
             bar.close()
+    return _finished(result, data, path, model, options, tied)
+
+
+def _finished(result, data, path, model, options, tied):
+    """``result`` with its provenance, and in the data's channels (:func:`brdffit.grey.untie`)."""
+    import dataclasses
+
+    from .grey import untie
+    from .models.registry import get_model
+
     record = provenance(data, path, model, options)
     if tied:
         result = untie(result, get_model(model), tied)

@@ -53,7 +53,7 @@ import numpy as np
 
 from data_formats._files import NotRegularFileError, open_regular
 
-from .errors import ConfigError
+from .errors import ConfigError, canonical_name
 
 #: The most samples a subsample may ask for (the readers' limit, ``MAX_SAMPLES`` = 2^24).
 MAX_SUBSAMPLE = 2**24
@@ -348,17 +348,20 @@ def available_presets() -> list[str]:
 
 
 def find_config(name_or_path) -> Path:
-    """The preset file for a path, or for a bare name (``ggx`` → ``configs/ggx.toml``)."""
+    """The preset file for a path, or for a bare name (``ggx`` → ``configs/ggx.toml``; a bare
+    name ignores case when no file has it exactly: ``GGX`` → ``configs/ggx.toml``)."""
     path = Path(name_or_path)
     if path.exists() and not path.is_dir():  # not a regular file: load_config says so
         return path
     bare = path.parent == Path(".") and path.suffix == ""
     if bare:
-        for folder in preset_folders():
-            candidate = folder / f"{path.name}.toml"
-            if candidate.is_file():
-                return candidate
         found = available_presets()
+        names = dict.fromkeys([path.name, canonical_name(path.name, found) or path.name])
+        for name in names:  # the name as given, then the preset it names ignoring case
+            for folder in preset_folders():
+                candidate = folder / f"{name}.toml"
+                if candidate.is_file():
+                    return candidate
         close = difflib.get_close_matches(path.name, found, n=1)
         hint = f" Did you mean {close[0]!r}?" if close else ""
         known = f"; known presets: {', '.join(found)}" if found else ""

@@ -32,9 +32,34 @@ class UnknownNameError(BrdffitError, KeyError):
         return self.args[0]
 
 
+def canonical_name(name, valid):
+    """The entry of ``valid`` that ``name`` names, ignoring case (registry names are
+    case-insensitive where a user types them: ``GGX`` is ``ggx``); ``name`` itself when it is an
+    entry; ``None`` when no entry matches (or ``name`` is not a string)."""
+    if not isinstance(name, str):
+        return None
+    if name in valid:
+        return name
+    folded = [v for v in valid if isinstance(v, str) and v.casefold() == name.casefold()]
+    return folded[0] if len(folded) == 1 else None
+
+
 class ConfigError(BrdffitError):
     """A preset or option with a wrong key, type or value."""
 
 
 class FitError(BrdffitError):
-    """A fit that cannot run (no usable data) or that failed with ``throw=True``."""
+    """A fit that cannot run (no usable data) or that failed with ``throw=True``.
+
+    ``result``: the :class:`~brdffit.fitting.FitResult` of a fit that ran and failed (the step
+    limit, a non-finite cost, data that determine nothing: ``success=False``, its ``status``
+    and ``message`` say why), as ``throw=False`` would have returned it; ``None`` for a fit
+    that could not start. It survives pickling (a Dask worker's error keeps its result).
+    """
+
+    def __init__(self, message: str, result=None):
+        super().__init__(message)
+        self.result = result
+
+    def __reduce__(self):
+        return type(self), (self.args[0] if self.args else "", self.result)

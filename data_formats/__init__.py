@@ -47,3 +47,9 @@ __all__ = [
 from .samplelist import SampleListFormatError, read_samples, write_samples  # noqa: E402
 
 __all__ += ["SampleListFormatError", "read_samples", "write_samples"]
+from .tensorfile import TensorFileError, read_tensor_file, write_tensor_file  # noqa: E402
+
+__all__ += ["TensorFileError", "read_tensor_file", "write_tensor_file"]
+from .rgl import RGLFormatError, RGLMaterial, read_rgl, synthesize_rgl, write_rgl  # noqa: E402
+
+__all__ += ["RGLFormatError", "RGLMaterial", "read_rgl", "write_rgl", "synthesize_rgl"]

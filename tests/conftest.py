@@ -1,16 +1,29 @@
-"""Test configuration: float64 everywhere (the library never flips jax.config itself)."""
+"""Test configuration: float64 everywhere (the library never flips jax.config itself), the
+persistent compilation cache in a temporary folder of this run's own, and each pytest process's
+memory kept in bounds (JAX's in-memory caches emptied as a process grows) and reported.
 
+The library turns the cache on at its first fit (:mod:`brdffit.compilation_cache`); the suite
+must never write into the user's real cache folder. ``BRDFFIT_COMPILATION_CACHE_DIR`` points
+it at a private temporary folder, set before anything runs, so that the subprocesses and Dask
+workers the tests start (which inherit the environment) use it too, and pytest-xdist's workers
+share the controller's; it is removed when the process that made it ends.
+(tests/test_compilation_cache.py removes the variable in its own subprocesses.)
+"""
+
+import atexit
 import ctypes
 import gc
 import os
+import shutil
+import tempfile
 
 import jax
 import pytest
 
-# Tests call the CLI in-process (`main(argv)`), which would point this process's jax.config at
-# the per-user compilation cache; keep the suite hermetic (tests/test_compilation_cache.py
-# removes the variable in its own subprocesses).
-os.environ.setdefault("BRDFFIT_NO_COMPILATION_CACHE", "1")
+if not os.environ.get("BRDFFIT_COMPILATION_CACHE_DIR"):
+    _CACHE = tempfile.mkdtemp(prefix="brdffit-test-jax-cache-")
+    os.environ["BRDFFIT_COMPILATION_CACHE_DIR"] = _CACHE
+    atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
 
 jax.config.update("jax_enable_x64", True)
 

@@ -92,7 +92,8 @@ def test_html_view_and_dataframe_have_one_row_per_scalar(result):
     assert df.loc["alpha", "lower"] == 0.001 and df.loc["alpha", "upper"] == 1.0
     assert (df["status"] == "free").all() and not df["at_bound"].any()
     html = result._repr_html_()
-    assert html.count("<tr>") == 1 + 8  # the header and one row per scalar
+    params = html.split("<table class='brdffit-params'>")[1].split("</table>")[0]
+    assert params.count("<tr>") == 1 + 8  # the header and one row per scalar
     assert "converged" in html and "rmse" in html and "cost" in html
     assert re.search(r"<td>alpha</td><td>0\.(2000|1999)\d* ± 0\.0*\d\d</td>", html)
 

@@ -270,6 +270,8 @@ def test_cli_usage_errors_exit_2_before_any_work(data, args, message, capsys, mo
 def test_compilation_cache_opt_out_and_unwritable_folder(monkeypatch, tmp_path):
     from brdffit import compilation_cache
 
+    monkeypatch.setattr(compilation_cache, "_decided", compilation_cache._decided)  # restored
+    monkeypatch.delenv(compilation_cache.FOLDER_VARIABLE, raising=False)  # the suite's folder
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     assert compilation_cache.cache_folder() == tmp_path / "brdffit" / "jax"
     monkeypatch.setenv(compilation_cache.OPT_OUT, "1")

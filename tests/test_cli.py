@@ -300,9 +300,12 @@ def test_demo_recovers_the_known_material(capsys, tmp_path):
     for name, true in DEMO_TRUTH.items():  # 1% noise: close, not exact
         np.testing.assert_allclose(result["params"][name], true, rtol=0.03, atol=2e-3)
     assert sorted(p.name for p in outdir.iterdir()) == [
-        "demo-albedo.png", "demo-peaks.png", "demo-slice.png", "demo-spheres.png", "result.json"]
-    # a second run refuses to overwrite, before doing any work
-    _fails(capsys, ["demo", "--outdir", str(outdir)], "already exists; pass --force")
+        "brdffit-demo.json", "demo-albedo.png", "demo-peaks.png", "demo-slice.png",
+        "demo-spheres.png", "result.json"]
+    # a second run refuses to overwrite a file it did not write, before doing any work
+    (outdir / "result.json").write_text("{}")
+    _fails(capsys, ["demo", "--outdir", str(outdir)], "result.json: already exists and is not "
+           "what an earlier demo wrote; pass --force")
 
 
 def test_synth_noise_is_multiplicative_with_the_given_sigma():

@@ -17,7 +17,8 @@ PROBE = (
 
 
 def probe(tmp_path, **env):
-    full = {k: v for k, v in os.environ.items() if k != "BRDFFIT_NO_COMPILATION_CACHE"}
+    full = {k: v for k, v in os.environ.items()
+            if k not in ("BRDFFIT_NO_COMPILATION_CACHE", "BRDFFIT_COMPILATION_CACHE_DIR")}
     full.update(PYTHONPATH=str(ROOT), **env)
     out = subprocess.run([sys.executable, "-c", PROBE], cwd=tmp_path, env=full,
                          capture_output=True, text=True, timeout=300)
@@ -45,7 +46,8 @@ def test_an_unwritable_home_disables_the_cache_and_the_cli_still_runs(tmp_path):
     env = {"HOME": str(blocked), "XDG_CACHE_HOME": str(blocked / ".cache")}
     folder, value, _ = probe(tmp_path, **env)[:3]
     assert folder == "None" and abs(float(value) - 1.682941969) < 1e-6
-    full = {**os.environ, "PYTHONPATH": str(ROOT), **env}
+    full = {**{k: v for k, v in os.environ.items() if k != "BRDFFIT_COMPILATION_CACHE_DIR"},
+            "PYTHONPATH": str(ROOT), **env}
     out = subprocess.run([sys.executable, str(ROOT / "cli.py"), "synth", "--model", "ggx",
                           "--samples", "20", "-o", "s.csv", "--quiet"], cwd=tmp_path, env=full,
                          capture_output=True, text=True, timeout=300)

@@ -1,5 +1,6 @@
 """``examples/fitting.ipynb`` runs end to end (nbclient, a fresh kernel), so the API it shows
-cannot rot. About 40-60 s: a small table, three fits, a short posterior."""
+cannot rot: the HTML and text reports, the figures of ``result.plot()`` and ``post.corner()``
+shown inline, the files it saves. About 40-60 s: a small table, two fits, a short posterior."""
 
 import shutil
 from pathlib import Path
@@ -20,10 +21,19 @@ def test_the_example_notebook_runs_and_shows_its_results(tmp_path):
     errors = [o for o in outputs if o.output_type == "error"]
     assert not errors, errors
     html = [o["data"]["text/html"] for o in outputs if "text/html" in o.get("data", {})]
-    assert any("brdffit-fit" in h for h in html)  # the FitResult's HTML view
+    report = next(h for h in html if "brdffit-fit" in h)  # the FitResult's HTML report
+    for part in ("initial", "AIC", "correlation", "rmse_log", "same data only"):
+        assert part in report, part
     assert any("brdffit-posterior" in h for h in html)
-    images = [o for o in outputs if "image/png" in o.get("data", {})]
-    assert len(images) >= 5  # four diagnostic figures and the corner plot, inline
+    text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
+    assert "[[Variables]]" in text and "[[Correlations]]" in text  # result.report()
+    # result.plot() and post.corner() return figures that show inline as the cell's value
+    figures = [o for o in outputs
+               if o.output_type == "execute_result" and "image/png" in o.get("data", {})]
+    assert len(figures) == 2, [o.get("data", {}).keys() for o in outputs]
+    sources = "".join(cell.source for cell in nb.cells)
+    assert "result" in sources and ".plot()" in sources and ".corner(" in sources
+    assert "Image(filename" not in sources  # no detour through files to show a figure
     for name in ("ggx.json", "ggx-posterior.json", "ggx-chain.npz", "figures/ggx-corner.png"):
         assert (tmp_path / name).is_file(), name
     import brdffit

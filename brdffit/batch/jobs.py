@@ -96,7 +96,7 @@ def prepare_process() -> str | None:
     jax.config.update("jax_enable_x64", True)
     from .. import compilation_cache
 
-    return compilation_cache.enable()
+    return compilation_cache.ensure()
 
 
 def _worker_name() -> str:
@@ -187,13 +187,10 @@ def _plot_into(folder, outdir, data, result, model: str) -> None:
 
 def _plot(data, result, path) -> None:
     from ..models.registry import get_model
-    from ..plots import diagnostics, format_error, rms_log_error
+    from ..plots import diagnostics, result_error
 
     model = get_model(result.model_name)
-    error = format_error(rms_log_error(data, model, result.params))
-    if not result.success:
-        error += " (fit NOT converged)"
-    return diagnostics(data, model, result.params, path=path, error=error)
+    return diagnostics(data, model, result.params, path=path, error=result_error(result))
 
 
 def _existing(job: Job, outdir, checksum: str, plot: bool, want_result: bool) -> dict | None:

@@ -10,8 +10,12 @@ the same :func:`run_batch`. Where jobs run:
   the workers;
 * else a ``LocalCluster`` of ``workers`` processes (default: one per CPU core, at most one per
   2 GiB of memory: :func:`default_workers`), one thread each
-  (a fit already uses every core it is given; two fits in one process would only queue),
-  started for the batch and closed after it. Each local worker is pinned to its own share of
+  (a fit already uses every core it is given; two fits in one process would only queue):
+  ``brdffit batch`` starts one for the batch and closes it after; ``fit_many`` keeps the one
+  it started for the session (:func:`session_client`), so a later call with the same
+  ``workers`` and ``dashboard`` runs at once on workers that have compiled their programs
+  already, and closes it at exit (:func:`close_session`; a signal's
+  :func:`close_local_clusters` closes it too). Each local worker is pinned to its own share of
   the cores (:class:`brdffit.batch.pinning.PinCores`): XLA sizes its thread pool to the cores a process may use, so
   unpinned workers would each start a thread per core and oversubscribe the machine.
   The local cluster is closed to other users of the machine: it listens on loopback only and
@@ -19,7 +23,8 @@ the same :func:`run_batch`. Where jobs run:
   certificate that exist only in this process and its workers), so a connection without them
   (any other process, another user) is refused before it can submit anything. No HTTP server
   runs: its scheduler and workers open no HTTP listener at all (:mod:`brdffit.batch.nohttp`),
-  unless ``dashboard`` names an address for the scheduler's dashboard.
+  unless ``dashboard`` names an address for the scheduler's dashboard; its link is then printed
+  on stderr (when that port is in use, Dask serves it on a free one: the line says so).
 
 Worker processes live for the whole batch, so each compiles a model's programs once per table
 layout and reuses them for every later job; the persistent compilation cache
@@ -32,14 +37,17 @@ here, :data:`LOCAL_SCHEDULER`) and then recorded as ``worker died``; the other j
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import dataclasses
 import logging
 import os
 import shutil
 import tempfile
+import threading
 import time
 import uuid
+import warnings
 
 from data_formats._atomic import writing
 
@@ -141,10 +149,13 @@ def default_workers() -> int:
 
 @contextlib.contextmanager
 def open_client(client=None, *, workers: int | None = None, scheduler: str | None = None,
-                dashboard: str | None = None):
+                dashboard: str | None = None, keep: bool = False):
     """Yield ``(client, description)``: the given client, one connected to ``scheduler`` (or
     ``DASK_SCHEDULER_ADDRESS``), or one of a new local cluster of ``workers`` processes (with
-    the scheduler's dashboard at ``dashboard``, an address like ``127.0.0.1:8787``, if given)."""
+    the scheduler's dashboard at ``dashboard``, an address like ``127.0.0.1:8787``, if given).
+    With ``keep``, the local cluster is the session's (:func:`session_client`): started by the
+    first call, reused by the next ones and closed at exit, or when a batch on it is
+    interrupted (its jobs would go on running)."""
     if client is not None:
         yield client, "the given client"
         return
@@ -164,9 +175,86 @@ def open_client(client=None, *, workers: int | None = None, scheduler: str | Non
         with c:
             yield c, f"scheduler {address}"
         return
-    workers = check_workers(workers)
-    with _local_cluster(workers or default_workers(), dashboard) as c:
+    n = check_workers(workers) or default_workers()
+    if keep:
+        kept = _session(n, dashboard)
+        try:
+            yield kept
+        except BaseException:  # an interrupted batch leaves its jobs running on the workers:
+            close_session()  # the next call would wait for them
+            raise
+        return
+    with _local_cluster(n, dashboard) as c:
         yield c
+
+
+@dataclasses.dataclass
+class _Kept:
+    """The session's local cluster: its settings, client and the stack that closes it."""
+
+    key: tuple
+    client: object
+    description: str
+    stack: contextlib.ExitStack
+
+
+#: The local cluster :func:`fit_many` keeps for the session (``None``: none yet, or closed).
+_KEPT: _Kept | None = None
+_KEPT_LOCK = threading.Lock()
+_AT_EXIT = False
+
+
+def _session(n: int, dashboard: str | None) -> tuple:
+    """``(client, description)`` of the session's local cluster of ``n`` workers (and
+    ``dashboard``): the one kept from an earlier call while it still runs with the same
+    settings, else a new one (the old one closed first). Its workers stay alive between
+    calls, and with them every program they compiled."""
+    global _KEPT, _AT_EXIT
+    with _KEPT_LOCK:
+        if _KEPT is not None and _KEPT.key == (n, dashboard) and _running(_KEPT.client):
+            return _KEPT.client, _KEPT.description
+        _close_kept()
+        if not _AT_EXIT:  # registered after distributed's exit handlers, so it runs first
+            _AT_EXIT = bool(atexit.register(close_session))
+        stack = contextlib.ExitStack()
+        try:
+            c, where = stack.enter_context(_local_cluster(n, dashboard))
+        except BaseException:
+            stack.close()
+            raise
+        _KEPT = _Kept((n, dashboard), c, where, stack)
+        return c, where
+
+
+def _running(client) -> bool:
+    """Whether ``client`` and its cluster still run (a signal may have closed them)."""
+    from distributed.core import Status
+
+    cluster = getattr(client, "cluster", None)
+    return client.status == "running" and getattr(cluster, "status", None) == Status.running
+
+
+def _close_kept() -> None:
+    """Close the kept cluster, if any (caller holds :data:`_KEPT_LOCK`)."""
+    global _KEPT
+    kept, _KEPT = _KEPT, None
+    if kept is not None:
+        with contextlib.suppress(Exception):
+            kept.stack.close()
+
+
+def session_client():
+    """The ``distributed.Client`` of the local cluster :func:`fit_many` keeps for this
+    session, or ``None`` (none started yet, or closed)."""
+    with _KEPT_LOCK:
+        return _KEPT.client if _KEPT is not None and _running(_KEPT.client) else None
+
+
+def close_session() -> None:
+    """Close the local cluster :func:`fit_many` keeps for this session (its workers stop, its
+    scratch folder goes); the next call starts a new one. Runs at interpreter exit too."""
+    with _KEPT_LOCK:
+        _close_kept()
 
 
 @contextlib.contextmanager
@@ -201,7 +289,10 @@ def _cluster_in(scratch: str, n: int, dashboard: str | None, security):
     # The start makes files in ``scratch`` (lock files, the nodes' folders): it counts as a
     # write in flight (data_formats._atomic.writing), so a signal's clean-up waits for it
     # instead of racing it (files made just after the removal stayed behind).
-    with writing(), dask.config.set(settings):
+    with writing(), dask.config.set(settings), warnings.catch_warnings():
+        # A dashboard port in use: Dask serves on another and warns; the link printed below
+        # says where (with the port asked for), in one line of ours.
+        warnings.filterwarnings("ignore", message=r"Port \d+ is already in use")
         # Started without workers, so that a signal during their start finds the cluster
         # (close_local_clusters); the workers are added below.
         cluster = nohttp.QuietCluster(n_workers=0, threads_per_worker=1, processes=True,
@@ -219,9 +310,27 @@ def _cluster_in(scratch: str, n: int, dashboard: str | None, security):
                     cluster.worker_spec.update(nohttp.quiet_workers(  # LocalCluster(n)
                         cluster.new_worker_spec()))
                 cluster.sync(cluster._correct_state)
+            if dashboard:
+                _report_dashboard(cluster, dashboard)
             yield c, f"{n} local worker{'s' * (n != 1)}"
     finally:
         _LIVE_CLUSTERS.discard(cluster)
+
+
+def _report_dashboard(cluster, asked: str) -> None:
+    """One line on stderr with the dashboard's link, and the port asked for when Dask had to
+    serve it on another (that one was in use)."""
+    import sys
+
+    from distributed.comm.addressing import parse_host_port
+
+    link = cluster.dashboard_link
+    port = cluster.scheduler_info.get("services", {}).get("dashboard")
+    with contextlib.suppress(ValueError, TypeError):
+        wanted = parse_host_port(asked)[1]
+        if wanted and port and wanted != port:
+            link += f" (port {wanted} is in use)"
+    print(f"Dask dashboard: {link}", file=sys.stderr, flush=True)
 
 
 def close_local_clusters(timeout: float = 5) -> None:
@@ -265,13 +374,16 @@ def _kill_children(timeout: float = 2) -> None:
 @dataclasses.dataclass
 class BatchOutcome:
     """``frame``: the results table; ``results``: a FitResult (or None) per row, when asked;
-    ``wall_time``: seconds; ``where``: what ran the jobs; ``files``: the table's files."""
+    ``wall_time``: seconds; ``where``: what ran the jobs; ``files``: the table's files;
+    ``merged``: rows of the outdir's earlier table ``kept`` and ``replaced`` in its files
+    (:func:`brdffit.batch.table.merge`)."""
 
     frame: object
     results: list | None
     wall_time: float
     where: str
     files: list
+    merged: dict | None = None
 
 
 def make_jobs(mats, models_and_kwargs) -> list[jobs.Job]:
@@ -287,20 +399,26 @@ def make_jobs(mats, models_and_kwargs) -> list[jobs.Job]:
 
 def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=False,
               client=None, workers=None, scheduler=None, dashboard=None,
-              progress=None) -> BatchOutcome:
+              progress=None, keep: bool = False) -> BatchOutcome:
     """Run every job, collect one row per job (in job order), write the table if ``outdir``.
+    ``keep``: run on the session's local cluster (:func:`open_client`).
 
     ``outdir`` is created and checked (writable, no link or special file where an output
     belongs: :func:`brdffit.batch.outdir.prepare`) before the cluster starts, and removed again
-    if it was created and the cluster cannot start."""
+    if it was created and the cluster cannot start. The rows are merged into the outdir's
+    table (:func:`brdffit.batch.table.merge`), which is read, and refused if it is not a batch
+    table, before the cluster starts; ``frame`` holds this batch's rows only."""
     t0 = time.perf_counter()
+    previous = merged = None
     if outdir is not None:
         outdir, created = outdirs.prepare(outdir, _files_by_folder(job_list, plot))
+        previous = table.read(outdir)
     outputs: dict[int, dict] = {}
     with contextlib.ExitStack() as stack:
         try:
             c, where = stack.enter_context(open_client(client, workers=workers,
-                                                       scheduler=scheduler, dashboard=dashboard))
+                                                       scheduler=scheduler, dashboard=dashboard,
+                                                       keep=keep))
         except BaseException:
             if outdir is not None:  # nothing ran: no output folder left behind
                 outdirs.remove_empty(created)
@@ -310,14 +428,17 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
                                                 "want_result": want_results}, progress)
         finally:
             df = table.frame([outputs[i]["row"] for i in sorted(outputs)])
-            files = table.write(df, outdir) if outdir is not None and len(df) else []
+            files = []
+            if outdir is not None and len(df):
+                whole, merged = table.merge(previous, df)
+                files = table.write(whole, outdir)
     results = None
     if want_results:
         from ..fitting import FitResult
 
         results = [None if outputs[i]["result"] is None else
                    FitResult.from_dict(outputs[i]["result"]) for i in sorted(outputs)]
-    return BatchOutcome(df, results, time.perf_counter() - t0, where, files)
+    return BatchOutcome(df, results, time.perf_counter() - t0, where, files, merged)
 
 
 def _files_by_folder(job_list, plot: bool) -> dict:
@@ -434,7 +555,7 @@ class _Bar:
 def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool = False,
              plot: bool = False, return_results: bool = False, workers: int | None = None,
              scheduler: str | None = None, dashboard: str | None = None,
-             progress: bool | None = False, **fit_options):
+             progress: bool | None = False, keep_cluster: bool = True, **fit_options):
     """Fit every model in ``models`` to every input, on Dask; return a pandas DataFrame.
 
     Args:
@@ -445,13 +566,21 @@ def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool =
             list of names.
         client: a ``distributed.Client`` to run on; by default a scheduler at ``scheduler`` or
             ``DASK_SCHEDULER_ADDRESS``, else a local cluster of ``workers`` processes (one per
-            core) started for this call (:func:`open_client`), closed to other users (TLS with
-            credentials of its own) and without an HTTP server unless ``dashboard`` gives the
-            scheduler's dashboard an address (``"127.0.0.1:8787"``).
+            core; :func:`open_client`), closed to other users (TLS with credentials of its
+            own) and without an HTTP server unless ``dashboard`` gives the scheduler's
+            dashboard an address (``"127.0.0.1:8787"``).
+        keep_cluster: keep that local cluster for the session (default): the next call with
+            the same ``workers`` and ``dashboard`` runs on it, on workers that have already
+            compiled their programs; it closes at exit or with :func:`close_session`
+            (:func:`session_client` gives its client). ``False``: a cluster for this call
+            alone, closed when it returns.
         outdir: if given, each result is written to ``outdir/<material>/<model>.json`` (and
             figures with ``plot``), the table to ``outdir/results.parquet`` and ``.csv``, and
             results already there for the same input checksum and options are read back
-            instead of refitted (``skipped``), unless ``force``.
+            instead of refitted (``skipped``), unless ``force``. The table holds every result
+            of the folder: this call's rows are merged into the one already there (a row of
+            the same material and model replaced; :func:`brdffit.batch.table.merge`), and a
+            table that is not a batch table raises ``BatchOutputError`` before any work.
         return_results: also return the :class:`~brdffit.FitResult` of each row (None where a
             job failed): ``(frame, results)``.
         progress: a progress bar on stderr (``None``: when stderr is a terminal).
@@ -471,5 +600,6 @@ def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool =
                          [(m, dict(fit_options)) for m in names])
     out = run_batch(job_list, outdir=outdir, force=force, plot=plot,
                     want_results=return_results, client=client, workers=workers,
-                    scheduler=scheduler, dashboard=dashboard, progress=progress)
+                    scheduler=scheduler, dashboard=dashboard, progress=progress,
+                    keep=keep_cluster)
     return (out.frame, out.results) if return_results else out.frame

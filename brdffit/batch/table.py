@@ -1,5 +1,12 @@
 """The table of a batch's results: one row per (material, model); its columns, files and summary.
 
+The table of an output folder holds every result in it: a batch merges its rows into the table
+already there (:func:`read`, :func:`merge`): a row of the same (material, model) is replaced,
+every other row is kept, new ones follow. A table the batch cannot read as one of its own (not
+parquet, a column missing, a (material, model) twice) stops the batch before any work
+(:class:`~brdffit.batch.outdir.BatchOutputError`) instead of being dropped. Both files are
+written atomically (:func:`write`): a failure or a signal leaves the old table as it was.
+
 Columns, in this order (:data:`BASE_COLUMNS`, then per-result columns in order of appearance):
 
 * ``material``, ``model``; ``success`` (the fit converged); ``outcome``: ``converged``,
@@ -22,6 +29,7 @@ Columns, in this order (:data:`BASE_COLUMNS`, then per-result columns in order o
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 
@@ -90,6 +98,97 @@ def frame(rows: list[dict]):
     for col in ("steps", "n_cells"):
         df[col] = df[col].astype("Int64")
     return df
+
+
+#: The columns a table must have for a batch to merge into it.
+KEY = ("material", "model")
+REQUIRED = (*KEY, "success", "outcome")
+
+
+def read(outdir):
+    """The table in ``outdir`` (``results.parquet``) as a DataFrame, ``None`` if there is none.
+
+    :class:`~brdffit.batch.outdir.BatchOutputError` for a file that is not a batch table (not
+    parquet, a required column missing, a (material, model) twice, a name that is not text),
+    and for a ``results.csv`` without its ``results.parquet`` (the CSV is a copy: a batch
+    would replace it by a table without its rows)."""
+    import pandas as pd
+
+    from .outdir import _CLOEXEC, _NOFOLLOW, BatchOutputError
+
+    where = os.path.join(os.fspath(outdir), "results.parquet")
+    hint = ("a batch merges its results into the table of its output folder: move the file "
+            "away or choose another --outdir")
+    try:
+        fd = os.open(where, os.O_RDONLY | _NOFOLLOW | _CLOEXEC)
+    except FileNotFoundError:
+        csv = os.path.join(os.fspath(outdir), "results.csv")
+        if os.path.lexists(csv):
+            raise BatchOutputError(f"{csv}: exists without results.parquet, the table it copies; "
+                                   f"{hint}") from None
+        return None
+    except OSError as exc:
+        raise BatchOutputError(f"{where}: cannot read the existing table "
+                               f"({exc.strerror or exc}); {hint}") from None
+    try:
+        with os.fdopen(fd, "rb") as f:
+            df = pd.read_parquet(f)
+    except Exception as exc:  # noqa: BLE001 (pyarrow's errors: not parquet, truncated)
+        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise BatchOutputError(f"{where}: not a table of brdffit batch results ({reason}); "
+                               f"{hint}") from None
+    missing = [c for c in REQUIRED if c not in df.columns]
+    if missing:
+        raise BatchOutputError(f"{where}: not a table of brdffit batch results (no column "
+                               f"{', '.join(missing)}); {hint}")
+    names = df[list(KEY)]
+    if not all(isinstance(v, str) and v for v in names.to_numpy().ravel()):
+        raise BatchOutputError(f"{where}: a row without a material or model name; {hint}")
+    twice = names[names.duplicated()]
+    if len(twice):
+        m, model = twice.iloc[0]
+        raise BatchOutputError(f"{where}: holds {m} × {model} more than once; {hint}")
+    return df
+
+
+def merge(previous, df):
+    """``df`` (this batch's rows) merged into ``previous`` (:func:`read`, or ``None``).
+
+    A row of ``previous`` whose (material, model) ``df`` has is replaced in place; the other
+    rows of ``previous`` are kept; the rest of ``df`` follows, in its order. Returns the merged
+    table and ``{"kept": ..., "replaced": ...}`` (rows of ``previous`` kept, and replaced)."""
+    if previous is None or not len(previous):
+        return df, {"kept": 0, "replaced": 0}
+    new = {(r["material"], r["model"]): r for r in df.to_dict("records")}
+    rows, replaced = [], 0
+    for old in previous.to_dict("records"):
+        row = new.pop((old["material"], old["model"]), None)
+        replaced += row is not None
+        rows.append(row if row is not None else
+                    {k: v for k, v in old.items() if k in BASE_COLUMNS or not _missing(v)})
+    rows += new.values()
+    return frame(rows), {"kept": len(previous) - replaced, "replaced": replaced}
+
+
+def _missing(value) -> bool:
+    """NaN / NA: a column a row does not have (another model's parameter)."""
+    import pandas as pd
+
+    try:
+        return bool(pd.isna(value))
+    except (TypeError, ValueError):  # an array
+        return False
+
+
+def merge_note(df, merged: dict | None) -> str:
+    """What the table holds beyond this batch's ``df`` ("" when nothing was kept or replaced)."""
+    if not merged or not (merged["kept"] or merged["replaced"]):
+        return ""
+    total = len(df) + merged["kept"]
+    replaced = (f" ({merged['replaced']} replacing an earlier result of the same material "
+                f"and model)" if merged["replaced"] else "")
+    return (f"the table holds {total} results: {len(df)} from this run{replaced}, "
+            f"{merged['kept']} kept from earlier runs")
 
 
 def write(df, outdir) -> list:

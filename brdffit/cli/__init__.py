@@ -15,7 +15,8 @@ RuntimeWarnings never reach stderr: the readers and commands check values themse
 other warning is one line, ``brdffit COMMAND: warning: ...``.
 
 The commands set float64 (``jax_enable_x64``) and the per-user persistent compilation cache
-(:mod:`brdffit.compilation_cache`) before any JAX work; the library itself never does.
+(:mod:`brdffit.compilation_cache`) before any JAX work; the library turns the cache on at its
+first fit.
 JAX and the fitter are imported only inside the commands that need them.
 """
 
@@ -103,10 +104,26 @@ def build_parser() -> argparse.ArgumentParser:
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--quiet", "-q", action="store_true", help="no progress messages")
     common.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    _global_options(parser, common)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for module in COMMANDS:
         module.add_parser(sub, [common])
     return parser
+
+
+def _global_options(parser, common) -> None:
+    """Make every option of ``common`` (the options all commands share) global: accepted
+    before the command (``brdffit --quiet fit ...``) as well as after it.
+
+    ``parser`` gets a copy of each, with its default; the commands' copies (``common`` is their
+    parent) default to ``argparse.SUPPRESS``, so that a command whose line omits the option
+    keeps what was given before the command instead of resetting it to the default.
+    """
+    import copy
+
+    for action in common._actions:
+        parser._add_action(copy.copy(action))
+        action.default = argparse.SUPPRESS
 
 
 def _user_errors() -> tuple[type[BaseException], ...]:

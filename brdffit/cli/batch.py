@@ -9,12 +9,18 @@ described in :mod:`brdffit.batch`; where jobs run in :mod:`brdffit.batch.runner`
 Exit codes: 0 every (material, model) has a converged result; 1 some did not (not converged,
 an error, a worker that died; each is in the table with its reason); 2 the invocation was wrong
 (no input matched, a list of paths that is not UTF-8 text or too large, unknown model, bad
-option, a scheduler address that is not one, an outdir that is a file, not writable, or holds a
-symbolic link or special file where a result belongs). Every such check is made before any fit.
+option, a scheduler address that is not one, an outdir that is a file, not writable, holds a
+symbolic link or special file where a result belongs, or a ``results.parquet`` that is not a
+batch table). Every such check is made before any fit.
+
+``OUTDIR/results.parquet`` (and its copy ``results.csv``) is the table of every result in
+OUTDIR: a batch merges its rows into it (a row of the same material and model is replaced, the
+others are kept; the ``wrote`` line says how many), see :mod:`brdffit.batch.table`.
 
 The local cluster is closed to other users (TLS with credentials of its own, loopback only) and
 serves no HTTP; ``--dashboard [ADDR]`` starts the scheduler's dashboard (default
-``127.0.0.1:8787``, loopback only).
+``127.0.0.1:8787``, loopback only) and prints its link on stderr (another port, said so, when
+that one is in use).
 """
 
 from __future__ import annotations
@@ -37,7 +43,9 @@ def add_parser(sub, parents) -> None:
         help="fit many tables with many models (on Dask), resumably",
         description="Fit every MODEL to every INPUT on a Dask cluster (by default local worker "
         "processes, one per core) and write OUTDIR/<material>/<model>.json per fit, "
-        "OUTDIR/results.parquet and OUTDIR/results.csv, and a summary. A rerun skips fits whose "
+        "OUTDIR/results.parquet and OUTDIR/results.csv (the table of every result in OUTDIR: "
+        "a rerun merges its rows in, replacing those of the same material and model), and a "
+        "summary. A rerun skips fits whose "
         "result exists for the same input checksum and options (--force refits). A failing "
         "input or fit is recorded and the batch goes on. Exit 0: all fits converged; 1: some "
         "did not; 2: bad invocation.",
@@ -122,7 +130,8 @@ def run(args) -> int:
     finally:
         remove_cleanup(runner.close_local_clusters)
     print(table.summary(out.frame, out.wall_time, where=out.where))
-    print("wrote " + ", ".join(str(p) for p in out.files))
+    note = table.merge_note(out.frame, out.merged)
+    print("wrote " + ", ".join(str(p) for p in out.files) + (f" ({note})" if note else ""))
     ok = bool(out.frame["success"].all())
     if not ok:
         print(f"brdffit batch: {int((~out.frame['success']).sum())} of {len(out.frame)} fits "

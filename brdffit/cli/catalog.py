@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+from .._columns import columns
+
 
 def add_parser(sub, parents) -> None:
     p = sub.add_parser(
@@ -47,10 +49,7 @@ def format_model(d: dict) -> str:
         shape = "rgb" if p["shape"] == [3] else ("scalar" if not p["shape"] else str(p["shape"]))
         bounds = f"[{p['lower']:g}, {p['upper']:g}]" + (" log" if p["log"] else "")
         rows.append((p["name"], shape, bounds, _default_text(p["default"]), p["description"]))
-    widths = [max(len(r[i]) for r in rows) for i in range(4)]
-    for r in rows:
-        lines.append("  " + "  ".join(f"{c:<{w}}" for c, w in zip(r, widths)) + "  " + r[4])
-    return "\n".join(lines)
+    return "\n".join(lines + columns(rows, "<<<<<", indent="  "))
 
 
 def run(args) -> int:
@@ -64,8 +63,7 @@ def run(args) -> int:
     if args.json:
         print(json.dumps([model_dict(m) for m in models], indent=2))
         return 0
-    width = max(len(m.name) for m in models)
-    for m in models:
-        print(f"{m.name:<{width}}  {len(m.params)} params ({m.size} values)  {m.description}")
+    print("\n".join(columns([(m.name, f"{len(m.params)} params ({m.size} values)",
+                               m.description) for m in models], "<<<")))
     print("\n`brdffit models NAME` shows a model's parameters, bounds and defaults.")
     return 0

@@ -4,6 +4,16 @@ Synthesizes a MERL table of a gold-like metallic paint from known ``ggx`` parame
 multiplicative noise), writes it into a temporary folder and reads it back, fits it with the
 default options, prints the recovered values beside the true ones, and writes the result JSON and
 the diagnostic figures into ``--outdir`` (default ``brdffit-demo``). Nothing is downloaded.
+
+The demo reruns: it owns what it wrote. Beside its outputs it writes :data:`MANIFEST`, the
+SHA-256 of every file it wrote; a later run replaces a file of the folder only where the file
+is still exactly what a demo wrote (its bytes hash to the manifest's value), so a rerun needs
+no ``--force``. A file the demo did not write, or one changed since (a user's ``result.json``,
+an edited figure), still needs ``--force``, as does any other existing output. Why bytes and
+not a mark on the folder: a folder mark would let the demo overwrite a file a user put there or
+edited after the demo ran; a hash proves the file holds nothing but the demo's own output. The
+demo only ever writes its own names (``result.json``, ``demo-*.png``, the manifest): other files
+of the folder are never touched, and a folder it did not create is never removed.
 """
 
 from __future__ import annotations
@@ -17,12 +27,17 @@ from pathlib import Path
 
 import numpy as np
 
+from .._columns import columns
 from ._common import Progress, UsageError, check_outputs, write_text
 from ._signals import add_cleanup, remove_cleanup
 
 #: The known material: a gold-like metallic paint.
 TRUTH = {"diffuse": (0.10, 0.06, 0.02), "f0": (0.90, 0.60, 0.30), "alpha": 0.15}
 MODEL, NOISE, SEED = "ggx", 0.01, 0
+#: The demo's record, in its folder, of the files it wrote: ``{"files": {name: "sha256:..."}}``.
+MANIFEST = "brdffit-demo.json"
+#: The largest manifest read (a few hundred bytes are written).
+MAX_MANIFEST_BYTES = 1 << 16
 
 
 def add_parser(sub, parents) -> None:
@@ -33,11 +48,14 @@ def add_parser(sub, parents) -> None:
         help="synthesize a known material, fit it, compare, write figures (no download)",
         description="Synthesize a MERL table from known ggx parameters (1% noise) in a "
         "temporary folder, fit it, print recovered against true values, and write the result "
-        "(result.json) and the figures (demo-*.png) into OUTDIR.",
+        "(result.json) and the figures (demo-*.png) into OUTDIR, with brdffit-demo.json, the "
+        "checksums of what it wrote: a rerun replaces those files.",
     )
     p.add_argument("--outdir", default="brdffit-demo", metavar="OUTDIR",
                    help="folder for the result and figures (created; default brdffit-demo)")
-    p.add_argument("--force", action="store_true", help="overwrite files already in OUTDIR")
+    p.add_argument("--force", action="store_true",
+                   help="overwrite files in OUTDIR that an earlier demo did not write (or that "
+                   "were changed since); the demo's own files are replaced without it")
     p.add_argument("--subsample", type=int, metavar="N",
                    help="fit on N random valid cells instead of all ~1.1 million (quicker)")
     p.set_defaults(run=run)
@@ -55,8 +73,7 @@ def comparison(result, truth: dict) -> str:
             label = name if len(true) == 1 else f"{name}[{k}]"  # the names of summary() and --fix
             sigma = abs(got[k] - true[k]) / err[k] if err[k] > 0 else float("nan")
             rows.append((label, f"{true[k]:.5f}", f"{got[k]:.5f}", f"{err[k]:.1e}", f"{sigma:.1f}"))
-    widths = [max(len(r[i]) for r in rows) for i in range(5)]
-    return "\n".join("  ".join(f"{c:>{w}}" for c, w in zip(r, widths)) for r in rows)
+    return "\n".join(columns(rows, ">>>>>"))
 
 
 def run(args) -> int:
@@ -67,6 +84,10 @@ def run(args) -> int:
         raise UsageError(f"--outdir {outdir}: exists and is not a folder")
     figures, result_path = outdir / "demo.png", outdir / "result.json"
     written = figure_paths(figures)
+    foreign = _not_ours([result_path, *written, outdir / MANIFEST], outdir)
+    if foreign is not None and not args.force:
+        raise UsageError(f"{foreign}: already exists and is not what an earlier demo wrote; "
+                         f"pass --force to overwrite it")
     created = not outdir.exists()
     if created:
         try:
@@ -86,6 +107,63 @@ def run(args) -> int:
         remove_cleanup(remove_if_empty)
 
 
+def _sha256(path: Path) -> str | None:
+    """``sha256:<hex>`` of the regular file at ``path`` (never through a link); ``None`` if it
+    is no regular file or cannot be read."""
+    import hashlib
+    import stat
+
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | os.O_CLOEXEC)
+    except OSError:
+        return None
+    with os.fdopen(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+            return None
+        digest = hashlib.sha256()
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return "sha256:" + digest.hexdigest()
+
+
+def _manifest(outdir: Path) -> dict | None:
+    """The manifest's ``{name: checksum}`` of ``outdir``; ``None`` if there is none or it is not
+    one (then it is a file like any other: only ``--force`` replaces it)."""
+    import json
+
+    path = outdir / MANIFEST
+    try:
+        if not path.is_file() or path.is_symlink() or path.stat().st_size > MAX_MANIFEST_BYTES:
+            return None
+        files = json.loads(path.read_text(encoding="utf-8"))["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if not isinstance(files, dict) or not all(isinstance(v, str) for v in files.values()):
+        return None
+    return files
+
+
+def _not_ours(paths, outdir: Path) -> Path | None:
+    """The first of ``paths`` that exists and is not the demo's own (module docstring)."""
+    owned = _manifest(outdir)
+    for path in paths:
+        if not os.path.lexists(path):
+            continue
+        if owned is None or (path.name != MANIFEST and (
+                path.name not in owned or _sha256(path) != owned[path.name])):
+            return path
+    return None
+
+
+def _write_manifest(outputs, outdir: Path, paths) -> None:
+    """The manifest of the staged ``paths`` (their checksums), staged with them."""
+    import json
+
+    files = {p.name: _sha256(outputs.staged(p)) for p in paths}
+    text = json.dumps({"written by": "brdffit demo", "files": files}, indent=2) + "\n"
+    outputs.write(outdir / MANIFEST, lambda tmp: write_text(tmp, text))
+
+
 def _rmdir_quietly(folder) -> None:
     try:
         os.rmdir(folder)  # only when empty: never what was published
@@ -101,7 +179,11 @@ def _run(args, outdir, figures, result_path, written) -> int:
 
     progress = Progress(args.quiet)
     model = get_model(MODEL)
-    with check_outputs([result_path, *written], args.force) as outputs, \
+    paths = [result_path, *written, outdir / MANIFEST]
+    # Every existing output is the demo's own (checked in run) or --force was given; without
+    # one to replace, a file that appears during the run is not overwritten (OutputSet).
+    replace = args.force or any(os.path.lexists(p) for p in paths)
+    with check_outputs(paths, replace) as outputs, \
             tempfile.TemporaryDirectory(prefix="brdffit-demo-") as tmp:
         from data_formats.merl import read_merl, write_merl
 
@@ -115,14 +197,15 @@ def _run(args, outdir, figures, result_path, written) -> int:
         result = fit(table, model, subsample=args.subsample, throw=False,
                      progress=progress if progress.enabled else None)
         outputs.write(result_path, lambda tmp_path: write_text(tmp_path, result.to_json() + "\n"))
-        outputs.write(figures, lambda base: write_figures(
-            table, base, model=model, params=result.params, converged=result.success,
-            progress=progress), base=True)
+        outputs.write(figures, lambda base: write_figures(table, base, result, progress=progress),
+                      base=True)
+        _write_manifest(outputs, outdir, [result_path, *written])
         print(result.summary())
         print(f"\nrecovered against true ({MODEL}, {NOISE:.0%} noise):")
         print(comparison(result, TRUTH))
         sys.stdout.flush()
         outputs.publish()
         remove_cleanup(cleanup)
-    print(f"\nwrote {result_path} and " + ", ".join(str(p) for p in written))
+    print(f"\nwrote {result_path} and " + ", ".join(str(p) for p in written)
+          + f" ({outdir / MANIFEST} records them: a rerun replaces them)")
     return 0 if result.success else 1

@@ -30,7 +30,8 @@ def add_parser(sub, parents) -> None:
     )
     p.add_argument("result", metavar="RESULT.json", help="a result written by `brdffit fit --out`")
     add_model_option(p, "export")
-    p.add_argument("--to", required=True, choices=TARGETS, help="the target format")
+    p.add_argument("--to", required=True, choices=TARGETS, type=str.lower,
+                   help="the target format")
     p.add_argument("--output", "-o", required=True, metavar="OUT", help="the file to write")
     p.add_argument("--approximate", action="store_true",
                    help="for a model with no exact counterpart: fit the target's native model to "

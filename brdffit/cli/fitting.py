@@ -85,7 +85,7 @@ def add_fit_options(target, solver=None) -> None:
                         help="residual weighting: linear, cosine, log, relative (+huber)")
     target.add_argument("--cutoff", type=float, metavar="DEG",
                         help="drop samples with θi or θo above DEG degrees")
-    target.add_argument("--weighting", choices=("angles", "samples"),
+    target.add_argument("--weighting", choices=("angles", "samples"), type=str.lower,
                         help="how samples count: by the share of the angles each stands for "
                         "(default; undoes the MERL θh warp) or once each")
     target.add_argument("--fix", action="append", metavar="NAME=VALUE",
@@ -116,9 +116,9 @@ def _add_solver_arguments(g) -> None:
                    help="the optimality test: converged when the best bounded Gauss-Newton step "
                    "would lower the cost by less than X times the cost (default 1e-9 in "
                    "float64, 1e-6 in float32)")
-    g.add_argument("--precision", choices=("float64", "float32"),
+    g.add_argument("--precision", choices=("float64", "float32"), type=str.lower,
                    help="model evaluation dtype (default float64)")
-    g.add_argument("--covariance", choices=("sandwich", "gn"),
+    g.add_argument("--covariance", choices=("sandwich", "gn"), type=str.lower,
                    help="standard errors: sandwich (robust, default) or gn (classical)")
 
 
@@ -170,7 +170,7 @@ def options_from(args):
         check_params(model, flags.init, "--init")
         check_params(model, flags.fixed, "--fix")
         options.check_params(model)
-    _check_names(options)
+    options = _check_names(options)
     return models, options
 
 
@@ -185,15 +185,21 @@ def _check_mcmc_ranges(args) -> None:
                          f"{MAX_CHAIN_VALUES:,} values; use fewer walkers or steps")
 
 
-def _check_names(options) -> None:
-    """Loss and solver names resolved now, so a typo fails before the input is read."""
-    from ..errors import UnknownNameError
+def _check_names(options):
+    """``options`` with its loss and solver names checked now, so that a typo fails before the
+    input is read, and spelled as registered (names ignore case: ``--loss LOG`` is ``log``)."""
+    from ..errors import UnknownNameError, canonical_name
     from ..fitting import SOLVERS, get_loss
 
-    if options.loss is not None:
-        get_loss(options.loss)
-    if options.solver is not None and options.solver not in SOLVERS:
-        raise UnknownNameError("solver", options.solver, SOLVERS)
+    loss, solver = options.loss, options.solver
+    if loss is not None:
+        get_loss(loss)
+        loss = loss.lower() if isinstance(loss, str) else loss  # all registered: lower case
+    if solver is not None:
+        if canonical_name(solver, SOLVERS) is None:
+            raise UnknownNameError("solver", solver, SOLVERS)
+        solver = canonical_name(solver, SOLVERS)
+    return dataclasses.replace(options, loss=loss, solver=solver)
 
 
 def run(args) -> int:
@@ -228,9 +234,8 @@ def run(args) -> int:
         if plot:
             from .plotting import write_figures
 
-            outputs.write(plot, lambda base: write_figures(
-                data, base, model=model, params=result.params, converged=result.success,
-                progress=progress), base=True)
+            outputs.write(plot, lambda base: write_figures(data, base, result, progress=progress),
+                          base=True)
         lines = [result.summary()] + ([cli_words(post.summary())] if post else [])
         print(text if args.json else "\n".join(lines))
         sys.stdout.flush()  # a failed stdout publishes nothing
@@ -293,17 +298,17 @@ def _fit_several(args, models, options, outputs) -> int:
 
 def comparison(results) -> str:
     """A table of fits of one table, in the given order: convergence, cost, the literature's
-    error metrics, free parameters, time."""
-    head = (f"{'rank':>4}  {'model':<14} {'converged':<9} {'cost':>12} {'rmse_log':>10} "
-            f"{'rmse_cosine':>11} {'free':>4} {'time':>7}")
-    rows = [head, "-" * len(head)]
+    error metrics, free parameters, time; columns sized to their content."""
+    from .._columns import columns
+
+    rows = [("rank", "model", "converged", "cost", "rmse_log", "rmse_cosine", "free", "time")]
     for k, r in enumerate(results, 1):
-        rows.append(f"{k:>4}  {r.model_name:<14} {'yes' if r.success else 'NO':<9} "
-                    f"{r.cost:>12.6g} {r.metrics['rmse_log']:>10.4g} "
-                    f"{r.metrics['rmse_cosine']:>11.4g} {len(r.free):>4} {r.wall_time:>6.2f}s")
+        rows.append((str(k), r.model_name, "yes" if r.success else "NO", f"{r.cost:.6g}",
+                     f"{r.metrics['rmse_log']:.4g}", f"{r.metrics['rmse_cosine']:.4g}",
+                     str(len(r.free)), f"{r.wall_time:.2f}s"))
     loss = {r.loss for r in results}
-    rows.append(f"(same cells, {'/'.join(sorted(loss))} loss; best first by cost, failed fits last)")
-    return "\n".join(rows)
+    return "\n".join(columns(rows, "><<>>>>>", rule=True) + [
+        f"(same cells, {'/'.join(sorted(loss))} loss; best first by cost, failed fits last)"])
 
 
 def _posterior(data, result, args, options, progress, mcmc, outputs):

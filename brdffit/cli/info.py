@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._columns import columns
 from ._common import check_readable, is_table, read_input
 
 
@@ -139,12 +140,11 @@ def format_info(figures: dict) -> str:
         f"  valid        {f['valid']:,} ({f['valid_fraction']:.1%})",
         f"  channels     {channels}",
         f"  uncertainty  {sigma}",
-        "  channel      min          median       max",
     ]
-    for ch in "rgb":
-        if f"{ch}_min" in f:
-            low, mid, high = (f[f"{ch}_{k}"] for k in ("min", "median", "max"))
-            lines.append(f"  {ch.upper()}            {low:<12.5g} {mid:<12.5g} {high:<12.5g}")
+    rows = [("channel", "min", "median", "max")] + [
+        (ch.upper(), *(f"{f[f'{ch}_{k}']:.5g}" for k in ("min", "median", "max")))
+        for ch in "rgb" if f"{ch}_min" in f]
+    lines += columns(rows, "<<<<", indent="  ", gap=" ", minimum=(12, 12, 12))
     if "peak_rgb" in f:
         lines.append(f"  peak         {_fmt(f['peak_rgb'])} (largest r+g+b) at "
                      f"theta_i={f['peak_theta_i_deg']:.3f} deg, "

@@ -50,18 +50,19 @@ def figure_paths(path) -> list[Path]:
     return paths(path)
 
 
-def write_figures(data, path, *, model=None, params=None, converged=True, progress=None):
-    """Write the diagnostic PNGs (atomically, by :func:`brdffit.plots.diagnostics`)."""
-    from ..plots import diagnostics, format_error, rms_log_error
+def write_figures(data, path, result=None, *, progress=None):
+    """Write the diagnostic PNGs of ``data`` and of the fit ``result`` if given (atomically, by
+    :func:`brdffit.plots.diagnostics`), the titles stating the result's own ``rmse_log``."""
+    from ..plots import diagnostics, result_error
 
-    error = None
-    if model is not None:
-        error = format_error(rms_log_error(data, model, params))
-        if not converged:
-            error += " (fit NOT converged)"
     if progress is not None:
         progress(f"writing figures {', '.join(str(p) for p in figure_paths(path))}")
-    return diagnostics(data, model, params, path=path, error=error)
+    if result is None:
+        return diagnostics(data, path=path)
+    from .. import get_model
+
+    return diagnostics(data, get_model(result.model_name), result.params, path=path,
+                       error=result_error(result))
 
 
 #: The largest result JSON read by ``--fit`` (results are a few kilobytes).
@@ -136,14 +137,8 @@ def run(args) -> int:
     written = figure_paths(args.output)
     with check_outputs(written, args.force) as outputs:
         data = read_input(args.file)
-        model = params = None
-        if result is not None:
-            from .. import get_model
-
-            model, params = get_model(result.model_name), result.params
         outputs.write(args.output, lambda base: write_figures(
-            data, base, model=model, params=params, converged=result is None or result.success,
-            progress=Progress(args.quiet)), base=True)
+            data, base, result, progress=Progress(args.quiet)), base=True)
         outputs.publish()
     if not args.quiet:
         print("wrote " + ", ".join(str(p) for p in written))

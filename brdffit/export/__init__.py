@@ -58,7 +58,8 @@ import warnings
 
 import numpy as np
 
-from ..errors import BrdffitError, UnknownNameError
+from ..errors import BrdffitError, UnknownNameError, canonical_name
+from ..metrics import metric_text, metrics_text
 from ._text import literal, xml_comment
 from .gltf import gltf_document, params_from_gltf
 from .mitsuba import is_mitsuba_model, mitsuba_dict, mitsuba_xml
@@ -122,7 +123,7 @@ def _note(native, fitted, source, approx, *, comment: bool) -> str:
         return f"brdffit: {native} fit of {src}, exact"
     m = approx.metrics
     return (f"brdffit: {native} approximating a {fitted} fit of {src}; approximation error "
-            f"rmse_log {m['rmse_log']:.4g}, rel_error {m['rel_error']:.4g}")
+            f"{metric_text('rmse_log', m['rmse_log'])}, {metric_text('rel_error', m['rel_error'])}")
 
 
 def _payload(target, model, params, note):
@@ -165,6 +166,7 @@ def export(result, to: str, *, approximate: bool = False, **approx_options) -> E
     """
     from ..models import get_model
 
+    to = canonical_name(to, TARGETS) or to  # names ignore case: "GLTF" is "gltf"
     if to not in TARGETS:
         raise UnknownNameError("export target", to, TARGETS)
     name, params = (result if isinstance(result, tuple) else (result.model_name, result.params))
@@ -194,5 +196,5 @@ def export_payload(result, to: str, *, approximate: bool = False, **approx_optio
         source = result[0] if isinstance(result, tuple) else result.model_name
         warnings.warn(ApproximationWarning(
             f"{out.model_name} approximates {source}: "
-            + ", ".join(f"{k} {v:.4g}" for k, v in m.items())), stacklevel=3)
+            + metrics_text(m)), stacklevel=3)
     return out.payload

@@ -10,6 +10,7 @@ listed may change without notice.
 * the fit: :func:`fit`, its options (:data:`FIT_DEFAULTS`, :func:`fit_options`,
   :class:`Settings`, :func:`tolerances`, :func:`default_precision`, :data:`WEIGHTINGS`) and its result
   (:class:`FitResult`, :class:`FittedModel`, :func:`json_safe`, :func:`value_with_error`,
+  its report :func:`fit_report`,
   the statuses that say the data cannot give a fit (:data:`DATA_VERDICTS`), and the errors
   of reading one back, :class:`ResultFormatError`, :class:`ResultChoiceError`);
 * the registries: losses (:data:`LOSSES`, :data:`DEFAULT_LOSS`, :func:`get_loss`,
@@ -28,6 +29,7 @@ from .outcome import DATA_VERDICTS
 from .options import FIT_DEFAULTS, Settings, default_precision, fit_options, tolerances
 from .parameters import Scalars, assign
 from .problem import Problem
+from .report import fit_report
 from .result import FitResult, FittedModel, json_safe, value_with_error
 from .result_json import ResultChoiceError, ResultFormatError
 from .solvers import DEFAULT_SOLVER, SOLVERS
@@ -58,6 +60,7 @@ __all__ = [
     "default_precision",
     "fit",
     "fit_options",
+    "fit_report",
     "get_loss",
     "json_safe",
     "measure",

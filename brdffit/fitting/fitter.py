@@ -47,8 +47,9 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             callback, also with fits running in several threads at once.
         throw: raise :class:`~brdffit.errors.FitError` when the solver does not converge or
             the data do not determine the model (status ``degenerate`` or ``implausible``:
-            :mod:`.outcome`); with ``False`` the result carries ``success=False``, the status
-            and a message saying what to do.
+            :mod:`.outcome`); the error carries the result (``err.result``). With ``False``
+            that result is returned: ``success=False``, the status and a message saying what
+            to do.
         **kwargs: the options, each described with its default in
             :class:`~brdffit.fitting.options.Settings`: ``loss``, ``solver``, ``init``,
             ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,

@@ -51,7 +51,7 @@ from collections.abc import Callable
 import jax.numpy as jnp
 import numpy as np
 
-from ..errors import ConfigError, UnknownNameError
+from ..errors import ConfigError, UnknownNameError, canonical_name
 
 #: Values below this are not used as the denominator of the relative loss.
 RELATIVE_FLOOR = 1e-3
@@ -155,15 +155,16 @@ def get_loss(loss, huber: float | None = None) -> Loss:
     """A :class:`Loss` from a registry name or a label (or a ``Loss``), optionally made robust.
 
     ``"log+huber"`` style names are accepted too (Huber threshold ``huber`` or 0.1), and so is
-    every :attr:`Loss.label` (``"log+huber(0.05)"``, what a ``FitResult`` records).
+    every :attr:`Loss.label` (``"log+huber(0.05)"``, what a ``FitResult`` records). Names
+    ignore case (``"LOG+Huber"``).
     """
     if isinstance(loss, Loss):
         return loss if huber is None else loss.robust(huber)
     name = str(loss)
     base, _, robust = name.partition("+")
     try:
-        delta = _huber_of(robust) if robust else None
-        out = LOSSES[base]
+        delta = _huber_of(robust.lower()) if robust else None
+        out = LOSSES[canonical_name(base, LOSSES) or base]
     except (KeyError, ValueError):
         raise UnknownNameError("loss", name, list(LOSSES) + [f"{k}+huber" for k in LOSSES]) from None
     if robust and delta is None:

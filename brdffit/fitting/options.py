@@ -15,7 +15,7 @@ from collections.abc import Mapping
 
 import jax
 
-from ..errors import UnknownNameError
+from ..errors import UnknownNameError, canonical_name
 from .data import WEIGHTINGS
 from .losses import DEFAULT_LOSS, Loss, get_loss
 from .solvers import DEFAULT_SOLVER, FTOL
@@ -71,7 +71,7 @@ def fit_options(options=None, **kwargs) -> dict:
     Raises ``TypeError`` for a name that is no option (listing the valid ones),
     :class:`~brdffit.errors.ConfigError` for a number out of its range and
     :class:`~brdffit.errors.UnknownNameError` for an unknown ``covariance``, ``precision`` or
-    ``weighting``.
+    ``weighting`` (names in any case; returned as the canonical name).
     """
     from ..config import check_fit_options
 
@@ -92,6 +92,10 @@ def fit_options(options=None, **kwargs) -> dict:
             f"{', '.join(sorted(FIT_DEFAULTS))}, progress, throw"
         )
     check_fit_options(given)
+    for key, valid in (("covariance", COVARIANCES), ("precision", PRECISIONS),
+                       ("weighting", WEIGHTINGS)):  # names ignore case: "GN" is "gn"
+        if canonical_name(given.get(key), valid) is not None:
+            given[key] = canonical_name(given[key], valid)
     if given.get("covariance", "sandwich") not in COVARIANCES:
         raise UnknownNameError("covariance", str(given["covariance"]), list(COVARIANCES))
     if given.get("precision") not in (None, *PRECISIONS):

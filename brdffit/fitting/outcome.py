@@ -230,8 +230,8 @@ def end_point(prep: Prepared, best: Solved):
 
 
 def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) -> FitResult:
-    """The :class:`FitResult` of the best solve (raises :class:`FitError` on failure if
-    ``throw``); sends the ``done`` event. ``costs``: the cost of each start; ``times``:
+    """The :class:`FitResult` of the best solve; sends the ``done`` event. On failure with
+    ``throw``, raises :class:`FitError` carrying that result (``err.result``) instead. ``costs``: the cost of each start; ``times``:
     ``perf_counter`` readings at the start, before the solves and after them."""
     model, s, free = prep.model, prep.settings, list(prep.scalars.free)
     x, bound = end_point(prep, best)
@@ -243,10 +243,6 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
     v = verdict(best, s.ftol)
     if v.status != "degenerate":  # a cost that depends on nothing says it first
         v = data_verdict(prep.selection, len(free)) or data_determined(v, bound, lost)
-    if throw and not v.success:
-        failed = "did not converge" if v.status not in ("degenerate", "implausible") else (
-            f"is {v.status}")
-        raise FitError(f"{model.name} fit of {prep.name or 'table'} {failed}: {v.message}")
     names = model.flat_names()
     message = v.message
     if best.finite and lost.any() and v.success:
@@ -275,5 +271,10 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
         table=prep.name, covariance=s.covariance, optimality=float(best.omega),
         not_identified=[names[free[i]] for i in np.flatnonzero(lost) if best.finite],
     )
+    if throw and not v.success:
+        failed = "did not converge" if v.status not in DATA_VERDICTS else f"is {v.status}"
+        raise FitError(f"{model.name} fit of {prep.name or 'table'} {failed}: {v.message} "
+                       f"(the result is the error's `.result`; `throw=False` returns it)",
+                       result)
     events.emit("done", success=v.success, cost=result.cost)
     return result

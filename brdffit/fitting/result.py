@@ -6,6 +6,13 @@ metrics, the solver's verdict (``success``, ``status``, ``message``, ``steps``),
 ended at a bound, and timings. ``result.model(wi, wo)`` evaluates the fitted BRDF anywhere;
 ``result.render_merl()`` fills a whole MERL grid with it. :meth:`FitResult.from_json` reads a
 path or JSON text back, every field checked (:mod:`brdffit.fitting.result_json`).
+
+For people: ``summary()`` (a few lines), ``report()`` and the notebook's HTML view (lmfit's
+``fit_report``: :mod:`brdffit.fitting.report`, with :attr:`FitResult.correlation`,
+:attr:`FitResult.aic`, :attr:`FitResult.bic`), and ``plot()``, the diagnostic figures as one
+matplotlib figure (:func:`brdffit.plots.plot_result`, imported when called, as ``export()``
+imports :mod:`brdffit.export`). The metrics' names and meanings are those of
+:mod:`brdffit.metrics`.
 """
 
 from __future__ import annotations
@@ -17,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..metrics import metrics_text
 from ..models.registry import get_model
 
 
@@ -60,12 +68,6 @@ def _short(v) -> str:
     return f"{float(v):.4g}"
 
 
-def _esc(text) -> str:
-    import html
-
-    return html.escape(str(text))
-
-
 def value_with_error(value: float, err: float) -> str:
     """``value ± err`` with the error to two significant digits and the value to the same
     decimal place (``0.08012 ± 0.00011``); ``value`` alone (6 significant digits) when the
@@ -76,10 +78,6 @@ def value_with_error(value: float, err: float) -> str:
     if place >= 0:
         return f"{round(value, -place):.0f} ± {round(err, -place):.0f}"
     return f"{value:.{-place}f} ± {err:.{-place}f}"
-
-
-def _value_html(value, err) -> str:
-    return _esc(value_with_error(value, err))
 
 
 @dataclasses.dataclass
@@ -97,7 +95,8 @@ class FitResult:
         at_bound: flat name → ``"lower"``/``"upper"`` for scalars that ended at a bound.
         cost: ``½ Σ r²`` of the chosen loss at the optimum (scipy's ``cost``).
         metrics: ``rmse`` (of the chosen residual), ``rmse_cosine``, ``rmse_log``,
-            ``rel_error`` (mean ``|ρ̂-ρ|/max(ρ,1e-3)``), over the cells used.
+            ``rel_error`` (mean ``|ρ̂-ρ|/max(ρ,1e-3)``), over the cells used; their formulas
+            and meanings: :data:`brdffit.metrics.METRICS`.
         success, status, message: the verdict (``status`` is optimistix's result name,
             ``"successful"`` on success by the optimality test, ``"still"`` on success by the
             stillness test, :func:`brdffit.fitting.stages.still`; ``"degenerate"`` when the data
@@ -181,6 +180,20 @@ class FitResult:
 
         return export_payload(self, to, approximate=approximate, **options)
 
+    def plot(self, data=None, *, only=None):
+        """The diagnostic figures of this fit as one matplotlib ``Figure`` (shown inline in a
+        notebook): the image slice, the specular-peak curves, the directional albedo and the lit
+        spheres, measured beside fitted, the titles stating this fit's ``rmse_log``.
+
+        ``data`` is what was fitted; by default the file ``provenance`` names is read again
+        (a result fitted to data in memory needs them). ``only`` picks views by name
+        (``"slice"``, ``"peaks"``, ``"albedo"``, ``"spheres"``). Delegates to
+        :func:`brdffit.plots.plot_result`; ``brdffit.plots.diagnostics`` writes PNG files.
+        """
+        from ..plots import plot_result
+
+        return plot_result(self, data, only=only)
+
     # -- reporting ------------------------------------------------------------------------------
     def summary(self) -> str:
         """A few readable lines: verdict, parameters ± standard errors, metrics."""
@@ -204,7 +217,7 @@ class FitResult:
             has_error = n in self.free and n not in self.at_bound and n not in self.not_identified
             err = f" ± {flat_se[n]:.3g}" if has_error else ""
             lines.append(f"  {n:>18} = {flat_x[n]:.6g}{err}{tag}")
-        lines.append("  " + ", ".join(f"{k} {v:.4g}" for k, v in self.metrics.items()))
+        lines.append("  " + metrics_text(self.metrics))
         lines.append(f"  cost {self.cost:.6g}, optimality {self.optimality:.2g}"
                      + (f"; starts {len(self.starts)}" if len(self.starts) > 1 else ""))
         return "\n".join(lines)
@@ -257,24 +270,46 @@ class FitResult:
 
         return pd.DataFrame(self.rows()).set_index("name")
 
+    @property
+    def correlation(self) -> np.ndarray:
+        """The correlation matrix over :attr:`names`, from :attr:`cov`:
+        ``cov[i, j] / (σ_i σ_j)``; NaN in the rows and columns of the scalars with no standard
+        error (fixed, at a bound, not identified, the copied components of a grey fit), 1 on
+        the diagonal elsewhere (:func:`brdffit.fitting.statistics.correlation`)."""
+        from .statistics import correlation
+
+        return correlation(self.cov, [r["stderr"] if not r["status"].startswith("=") else
+                                      float("nan") for r in self.rows()])
+
+    @property
+    def aic(self) -> float:
+        """Akaike's information criterion, as lmfit's ``result.aic``; for comparing models fitted
+        to the same data only (:func:`brdffit.fitting.report.information_criteria`)."""
+        from .report import information_criteria
+
+        return information_criteria(self)["aic"]
+
+    @property
+    def bic(self) -> float:
+        """The Bayesian information criterion, as lmfit's ``result.bic``; same caveat as
+        :attr:`aic`."""
+        from .report import information_criteria
+
+        return information_criteria(self)["bic"]
+
+    def report(self, *, min_correl: float = 0.1) -> str:
+        """The text report, as lmfit's ``fit_report``: :func:`brdffit.fitting.fit_report`."""
+        from .report import fit_report
+
+        return fit_report(self, min_correl=min_correl)
+
     def _repr_html_(self) -> str:
-        """Jupyter's view: verdict line, a parameter table (value ± standard error, bounds,
-        status), the metrics, cost, steps and time."""
-        verdict = "converged" if self.success else f"<b>FAILED</b> ({_esc(self.status)})"
-        head = (f"<b>{_esc(self.model_name)}</b> fit of <code>{_esc(self.table or 'table')}</code>"
-                f" ({_esc(self.loss)} loss, {_esc(self.solver)}): {verdict} in {self.steps} steps, "
-                f"{self.wall_time:.2f} s, {self.n_cells} cells")
-        body = "".join(
-            f"<tr><td>{_esc(r['name'])}</td><td>{_value_html(r['value'], r['stderr'])}</td>"
-            f"<td>[{r['lower']:g}, {r['upper']:g}]</td><td>{_esc(r['status'])}</td></tr>"
-            for r in self.rows()
-        )
-        table = ("<table><thead><tr><th>parameter</th><th>value ± stderr</th><th>bounds</th>"
-                 f"<th>status</th></tr></thead><tbody>{body}</tbody></table>")
-        metrics = ", ".join(f"{_esc(k)} {v:.4g}" for k, v in self.metrics.items())
-        msg = f"<p>message: {_esc(self.message)}</p>" if self.message else ""
-        return (f"<div class='brdffit-fit'><p>{head}</p>{msg}{table}<p>{metrics}; "
-                f"cost {self.cost:.6g}</p></div>")
+        """Jupyter's view: the report as HTML (:func:`brdffit.fitting.report.report_html`):
+        parameters (value ± standard error, initial value, bounds, status), fit statistics
+        (cost, χ², AIC/BIC, steps, time), the metrics and the strongest correlations."""
+        from .report import report_html
+
+        return report_html(self)
 
     def to_dict(self) -> dict:
         """Plain Python types only (lists for arrays)."""

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import BrdffitError
+from ..errors import BrdffitError, canonical_name
 
 #: A ``str`` longer than this is JSON text, never a path (Linux's ``PATH_MAX``).
 _PATH_MAX = 4096
@@ -145,8 +145,9 @@ def pick(name, results: list, model: str | None):
         raise ResultFormatError(name, f"'results' holds more than one {twice[0]!r} result")
     if model is None and len(results) == 1:
         return results[0]
-    if model in names:
-        return results[names.index(model)]
+    chosen = canonical_name(model, names)  # model names ignore case
+    if chosen is not None:
+        return results[names.index(chosen)]
     raise ResultChoiceError(name, names, model)
 
 

@@ -47,7 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from ..errors import UnknownNameError
+from ..errors import UnknownNameError, canonical_name
 from .transforms import held_on_bounds
 
 SOLVERS = {
@@ -366,7 +366,7 @@ def make_solver(name, rtol: float, atol: float, verbose=None, noise: float = 1e-
         solver = name
     else:
         try:
-            cls = SOLVERS[name]
+            cls = SOLVERS[canonical_name(name, SOLVERS) or name]  # names ignore case
         except (KeyError, TypeError):
             raise UnknownNameError("solver", str(name), SOLVERS) from None
         solver = cls(rtol=rtol, atol=atol, verbose=verbose or _quiet)

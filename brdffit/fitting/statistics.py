@@ -77,7 +77,8 @@ def cell_metric_sums(pred, data: FitData):
 
 def metrics_from(sum_r2, sums):
     """Error figures over the cells used (non-zero weight): ``(dict, cost, m)`` from ``Σ r²`` and
-    the :func:`cell_metric_sums` of all blocks."""
+    the :func:`cell_metric_sums` of all blocks. The names, their order and their formulas are
+    :data:`brdffit.metrics.METRICS`."""
     m = jnp.maximum(sums[0], 1.0)
     return {
         "rmse": jnp.sqrt(sum_r2 / m),
@@ -111,6 +112,18 @@ def covariance(jtj_u, meat_u, dxdu, sum_r2: float, m: float, keep: np.ndarray, k
     else:
         cov[np.ix_(k, k)] = inv @ meat @ inv * (m / max(m - len(k), 1.0))
     return cov, regular
+
+
+def correlation(cov, stderr) -> np.ndarray:
+    """The correlation matrix ``cov[i, j] / (σ_i σ_j)`` (clipped to [-1, 1]) with ``σ`` the
+    standard errors ``stderr``; NaN in every row and column whose ``σ`` is not a positive finite
+    number (no standard error: no correlation), 1 on the rest of the diagonal."""
+    cov, se = np.asarray(cov, float), np.asarray(stderr, float)
+    out = np.full(cov.shape, np.nan)
+    k = np.flatnonzero(np.isfinite(se) & (se > 0))
+    out[np.ix_(k, k)] = np.clip(cov[np.ix_(k, k)] / np.outer(se[k], se[k]), -1.0, 1.0)
+    out[k, k] = 1.0
+    return out
 
 
 def schur_deficient(jtj_z, keep: np.ndarray) -> np.ndarray:

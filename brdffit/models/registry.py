@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from ..errors import BrdffitError, UnknownNameError
+from ..errors import BrdffitError, UnknownNameError, canonical_name
 
 
 @dataclasses.dataclass(frozen=True)
@@ -250,12 +250,13 @@ def register_factory(factory: Callable) -> Callable:
 
 
 def get_model(model) -> Model:
-    """A :class:`Model` from a registry name (or the model itself)."""
+    """A :class:`Model` from a registry name, in any case (or the model itself)."""
     if isinstance(model, Model):
         return model
+    model = canonical_name(model, _REGISTRY) or model  # names ignore case: "GGX" is "ggx"
     if model not in _REGISTRY:
         for factory in _FACTORIES:
-            built = factory(model)
+            built = factory(model.lower() if isinstance(model, str) else model)
             if built is not None:
                 return built
     try:

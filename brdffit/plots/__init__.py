@@ -1,17 +1,21 @@
 """Diagnostic figures of a measured BRDF and, optionally, a fitted model (Burley 2012 §3).
 
 Four views, one module each, each a function returning a :class:`matplotlib.figure.Figure`
-(built without ``pyplot``: no GUI backend, nothing to close):
+(built without ``pyplot``: no GUI backend, nothing to close; a notebook shows it inline,
+:class:`._style.InlineFigure`), drawn into a given figure or sub-figure with ``fig=``:
 
-* :func:`plot_slice`: the image slice at φd = 90°, measured | fitted | log ratio.
+* :func:`plot_slice`: the image slice at φd = 90°, measured | fitted | ratio.
 * :func:`plot_peaks`: log f_r against θh at θd = 1°, 30°, 60°, 80° (φd = 90°).
 * :func:`plot_albedo`: directional albedo against incidence angle.
 * :func:`plot_spheres`: a sphere under a directional light, measured | fitted.
 
 ``data`` is a MERL table (``data_formats.merl.MERLTable``) or a :class:`data_formats.SampleSet`;
 the slice and the peak curves then bin the samples near φd = 90°, the albedo and the spheres use
-the nearest sample (see each module). :func:`diagnostics` writes all four PNGs at once.
-JAX precision is the caller's choice (enable ``jax_enable_x64`` for float64, as the CLI does).
+the nearest sample (see each module). :func:`plot_diagnostics` draws the views as one figure,
+:func:`plot_result` that figure of a :class:`~brdffit.FitResult` (what ``result.plot()``
+returns), :func:`diagnostics` writes each view to its own PNG. The titles state the fit's
+``rmse_log`` (:mod:`.error`, :mod:`brdffit.metrics`). JAX precision is the caller's choice
+(enable ``jax_enable_x64`` for float64, as the CLI does; :func:`plot_result` runs in float64).
 """
 
 from __future__ import annotations
@@ -19,16 +23,25 @@ from __future__ import annotations
 from pathlib import Path
 
 from ._eval import evaluate_model, measured_lookup
-from ._style import save_png
+from ._style import InlineFigure, new_figure, save_png
 from .albedo import directional_albedo, measured_albedo, model_albedo, plot_albedo
-from .error import format_error, rms_log_error
+from .albedo import figure_size as _albedo_size
+from .error import format_error, model_error, result_error, rms_log_error
+from .peaks import figure_size as _peaks_size
 from .peaks import plot_peaks
+from .slice import figure_size as _slice_size
 from .slice import plot_slice, slice_data
+from .sphere import figure_size as _spheres_size
 from .sphere import plot_spheres, render_sphere
 
 #: The figures :func:`diagnostics` writes, in order, with their file-name suffixes.
 FIGURES = (("slice", plot_slice), ("peaks", plot_peaks), ("albedo", plot_albedo),
            ("spheres", plot_spheres))
+#: Each view's size in inches, with (True) or without (False) a fit drawn.
+SIZES = {"slice": _slice_size, "peaks": lambda fitted: _peaks_size(),
+         "albedo": lambda fitted: _albedo_size(), "spheres": _spheres_size}
+#: The widest row of :func:`plot_diagnostics`, inches.
+ROW_WIDTH = 15.4
 
 
 def figure_paths(path) -> list[Path]:
@@ -53,32 +66,123 @@ def diagnostics(data, model=None, params=None, *, path, error: str | None = None
             (missing entries take the defaults). Both None: measured data only.
         path: ``"out/fig.png"`` writes ``out/fig-slice.png``, ``-peaks``, ``-albedo``,
             ``-spheres``; an existing directory receives ``slice.png`` etc. (:func:`figure_paths`).
-        error: title text for the fit's error; by default the RMS ln-ratio of
-            :func:`rms_log_error` (computed once, on at most 100 000 valid measurements).
-        only: an optional subset of ``("slice", "peaks", "albedo", "spheres")``.
+        error: title text for the fit's error; by default the ``rmse_log`` of the model over
+            the data (:func:`.error.model_error`, computed once, on at most 100 000 valid
+            measurements); pass :func:`result_error` of a fit result to state its own.
+        only: an optional name or subset of ``("slice", "peaks", "albedo", "spheres")``.
 
     Files are written atomically (temporary file, then rename) and overwrite existing ones: the
     caller decides whether that is allowed.
     """
-    names = [n for n, _ in FIGURES]
-    if only is not None:
-        unknown = sorted(set(only) - set(names))
-        if unknown:
-            from ..errors import UnknownNameError
-
-            raise UnknownNameError("figure", unknown[0], names)
+    picked = _check_only(only)
     if model is not None and error is None:
-        error = format_error(rms_log_error(data, model, params))
+        error = model_error(data, model, params)
     written = []
     for (name, plot), target in zip(FIGURES, figure_paths(path)):
-        if only is not None and name not in only:
+        if name not in picked:
             continue
         written.append(save_png(plot(data, model, params, error=error), target))
     return written
 
 
+def _check_only(only) -> list[str]:
+    """The names of the views ``only`` picks (all without it), in :data:`FIGURES` order."""
+    names = [n for n, _ in FIGURES]
+    if only is None:
+        return names
+    only = [only] if isinstance(only, str) else list(only)
+    unknown = sorted(set(only) - set(names))
+    if unknown:
+        from ..errors import UnknownNameError
+
+        raise UnknownNameError("figure", unknown[0], names)
+    return [n for n in names if n in only]
+
+
+def _rows(names, fitted: bool) -> list[list[str]]:
+    """The views packed into rows left to right, a row at most :data:`ROW_WIDTH` wide."""
+    rows, width = [], 0.0
+    for name in names:
+        w = SIZES[name](fitted)[0]
+        if rows and width + w <= ROW_WIDTH:
+            rows[-1].append(name)
+            width += w
+        else:
+            rows.append([name])
+            width = w
+    return rows
+
+
+def plot_diagnostics(data, model=None, params=None, *, error: str | None = None, only=None):
+    """The diagnostic views of :func:`diagnostics` as one figure (a sub-figure each, every view
+    at its own size); returns it (a notebook shows it inline).
+
+    ``only`` picks views (a name or names of :data:`FIGURES`); ``error`` is the title text of
+    the fit's error (by default the model's ``rmse_log`` over ``data``, :func:`model_error`).
+    """
+    names = _check_only(only)
+    fitted = model is not None
+    if fitted and error is None:
+        error = model_error(data, model, params)
+    plots = dict(FIGURES)
+    rows = _rows(names, fitted)
+    sizes = [[SIZES[n](fitted) for n in row] for row in rows]
+    width = max(sum(w for w, _ in row) for row in sizes)
+    heights = [max(h for _, h in row) for row in sizes]
+    fig = new_figure(width, sum(heights))
+    subs = fig.subfigures(len(rows), 1, height_ratios=heights, squeeze=False)[:, 0]
+    for sub, row, size in zip(subs, rows, sizes):
+        widths = [w for w, _ in size]
+        spare = width - sum(widths)
+        cells = sub.subfigures(1, len(row) + (spare > 0.05), squeeze=False,
+                               width_ratios=widths + ([spare] if spare > 0.05 else []))[0]
+        for cell, name in zip(cells, row):
+            plots[name](data, model, params, error=error, fig=cell)
+    return fig
+
+
+def plot_result(result, data=None, *, only=None):
+    """:func:`plot_diagnostics` of a fit result: its model and parameters, its own ``rmse_log``
+    in the titles (:func:`result_error`). ``data``: what was fitted; by default the file the
+    result names (``result.provenance["input"]["path"]``, :func:`result_data`). Evaluated in
+    float64 (``jax.enable_x64`` for the call), as :func:`brdffit.fit` fits."""
+    import jax
+
+    if data is None:
+        data = result_data(result)
+    with jax.enable_x64(True):
+        return plot_diagnostics(data, result.model_name, result.params,
+                                error=result_error(result), only=only)
+
+
+def result_data(result):
+    """The data a fit result was fitted to, read again from the path its provenance records.
+
+    Raises :class:`~brdffit.errors.BrdffitError` when the result names no file (it was
+    fitted to data in memory: pass them) or the file changed since (its SHA-256 differs).
+    """
+    from ..errors import BrdffitError
+    from ..io import read_path, sha256
+
+    record = (result.provenance or {}).get("input") or {}
+    path = record.get("path")
+    if not path:
+        raise BrdffitError(f"this {result.model_name} result records no input file (it was "
+                           "fitted to data in memory); pass the data: result.plot(table)")
+    from pathlib import Path
+
+    if not Path(path).is_file():
+        raise BrdffitError(f"{path}: the file this result was fitted to is gone; pass the "
+                           "data: result.plot(table)")
+    if record.get("sha256") and sha256(path) != record["sha256"]:
+        raise BrdffitError(f"{path} changed since this result was fitted to it (SHA-256 "
+                           "differs); pass the data: result.plot(table)")
+    return read_path(path)
+
+
 __all__ = [
     "FIGURES",
+    "InlineFigure",
     "diagnostics",
     "directional_albedo",
     "evaluate_model",
@@ -87,11 +191,16 @@ __all__ = [
     "measured_albedo",
     "measured_lookup",
     "model_albedo",
+    "model_error",
     "plot_albedo",
+    "plot_diagnostics",
     "plot_peaks",
+    "plot_result",
     "plot_slice",
     "plot_spheres",
     "render_sphere",
+    "result_data",
+    "result_error",
     "rms_log_error",
     "save_png",
     "slice_data",

@@ -1,7 +1,9 @@
 """Shared looks of the diagnostic figures: tone mapping, the warped θh axis, titles, saving.
 
 Figures are built with :class:`matplotlib.figure.Figure` directly (never ``pyplot``), so no GUI
-backend and no global figure registry are involved; PNGs are written by the Agg canvas.
+backend and no global figure registry are involved; PNGs are written by the Agg canvas. They are
+:class:`InlineFigure` objects, which a notebook shows inline as the value of a cell (IPython shows a
+``pyplot`` figure by itself, but a plain ``Figure`` only as ``<Figure size ...>``).
 """
 
 from __future__ import annotations
@@ -77,9 +79,26 @@ def log_tonemap(rgb, ref: float, top: float, mid: float = LOG_MID) -> np.ndarray
     return clipped + s[..., None] * (1.0 - clipped)
 
 
+def readable(value: float) -> str:
+    """A positive number to three significant digits as people write it: ``0.302``, ``1290``,
+    ``0.00412``; powers of ten (``2.1×10⁻⁵``) only outside ``[10⁻³, 10⁶)``."""
+    value = float(f"{float(value):.3g}")
+    if not np.isfinite(value) or value == 0:
+        return f"{value:g}"
+    exp = int(np.floor(np.log10(abs(value))))
+    if -3 <= exp < 6:
+        return f"{value:.{max(0, 2 - exp)}f}"
+    sup = str(exp).translate(str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹"))
+    return f"{value / 10.0**exp:.3g}×10{sup}"
+
+
 def tonemap_label(ref: float, top: float) -> str:
-    """How :func:`log_tonemap` mapped an image, for a figure's caption."""
-    return f"log luminance: {ref:.3g} → {LOG_MID:g}, {top:.3g} → white"
+    """How :func:`log_tonemap` mapped an image, for a figure's caption, in words (two lines,
+    to fit over one panel): brightness
+    follows the logarithm of the luminance, the median at mid-grey (display ``LOG_MID``), ``top``
+    (:func:`log_levels`) and above at white; values in BRDF units, 1/sr."""
+    return (f"log brightness scale: median {readable(ref)} /sr mid-grey,\n"
+            f"{readable(top)} /sr and above white")
 
 
 def diverging_cmap():
@@ -125,9 +144,28 @@ def figure_title(material: str, model_name: str | None, error: str | None, what:
     return title
 
 
-def new_figure(width: float, height: float) -> Figure:
-    """A figure of ``width × height`` inches at :data:`DPI`, with a constrained layout."""
-    return Figure(figsize=(width, height), dpi=DPI, layout="constrained")
+class InlineFigure(Figure):
+    """A matplotlib :class:`~matplotlib.figure.Figure` that shows itself inline in a notebook.
+
+    IPython displays an object through its ``_repr_png_``; matplotlib registers that for plain
+    figures only when ``pyplot`` is in use, which this package never imports. Everything else is
+    the base class's: ``savefig``, ``subfigures``, embedding in a GUI.
+    """
+
+    def _repr_png_(self) -> bytes:
+        import io
+
+        buf = io.BytesIO()
+        self.savefig(buf, format="png", dpi=self.dpi, bbox_inches="tight")
+        return buf.getvalue()
+
+
+def new_figure(width: float, height: float, fig=None):
+    """A figure of ``width × height`` inches at :data:`DPI`, with a constrained layout; or
+    ``fig`` itself when given (a figure or sub-figure to draw into, whose size it keeps)."""
+    if fig is not None:
+        return fig
+    return InlineFigure(figsize=(width, height), dpi=DPI, layout="constrained")
 
 
 def save_png(fig: Figure, path) -> Path:

@@ -97,14 +97,19 @@ def measured_albedo(data, theta_i_deg=THETA_I_DEG, *, min_coverage: float = 0.9,
     albedo, coverage = directional_albedo(measured_lookup(data), theta_i_deg, **grid)
     return np.where((coverage >= min_coverage)[:, None], albedo, np.nan)
 
+def figure_size() -> tuple[float, float]:
+    """``(width, height)`` in inches of the albedo figure."""
+    return 7.0, 4.6
+
 
 def plot_albedo(data, model=None, params=None, *, theta_i_deg=THETA_I_DEG, error: str | None = None,
-                title: str | None = None):
-    """The albedo figure: ρ(θi) per RGB channel, measured (markers) and fitted (lines)."""
+                title: str | None = None, fig=None):
+    """The albedo figure: ρ(θi) per RGB channel, measured (markers) and fitted (lines); drawn
+    into ``fig`` (a figure or sub-figure) when given, else a new figure. Returns the figure."""
     theta_i_deg = np.asarray(theta_i_deg, float)
     meas = measured_albedo(data, theta_i_deg)
     fit = None if model is None else model_albedo(model, params, theta_i_deg)
-    fig = _style.new_figure(7.0, 4.6)
+    fig = _style.new_figure(*figure_size(), fig)
     ax = fig.subplots()
     for c, (color, ch) in enumerate(zip(_style.CHANNEL_COLORS, _style.CHANNEL_NAMES)):
         ax.plot(theta_i_deg, meas[:, c], "o" if fit is not None else "o-", ms=3.5, mfc="none",

@@ -1,21 +1,30 @@
-r"""The error figure printed in every diagnostic title: RMS log ratio of fitted to measured.
+r"""The error a diagnostic figure's title states, and the per-cell ratio its slice shows.
+
+The title states the fit's own ``rmse_log`` (:data:`brdffit.metrics.FIGURE_METRIC`, defined
+with every other metric in :mod:`brdffit.metrics`): a figure of a fit result takes the value
+from ``result.metrics`` (:func:`result_error`), so the figure, the summary, the report and the
+JSON show one number. A figure of a model and parameters without a result computes the same
+formula (:func:`brdffit.metrics.values`) over at most 100 000 valid measurements above the
+horizon (:func:`error_pairs`, seeded); over the cells a fit used (no ``cutoff``, no
+``subsample``) that is the fit's value.
+
+The slice's ratio panel shows every cell's relative error instead, the log ratio
 
 .. math::
 
-    E = \sqrt{\frac{1}{3N}\sum_{n,c}
-        \left(\ln\frac{f_\text{fit}(n,c) + \varepsilon}{f_\text{meas}(n,c) + \varepsilon}\right)^2}
+    \ln\frac{f_\text{fit}(n,c) + \varepsilon}{f_\text{meas}(n,c) + \varepsilon}
 
-over valid measurements with both directions above the horizon, ``ε = 1e-3`` BRDF units (about
-one quantum of the MERL encoding, 1/1500), so that near-black cells do not dominate. ``E`` is a
-typical multiplicative error: ``E = 0.1`` means about 10 %. It is the same quantity the image
-slice's ratio panel shows per cell (there in log10). It is a display figure, independent of the
-loss a fit minimised; a caller may pass its own text instead (``error=`` in every figure).
+with ``ε = 1e-3`` BRDF units (about one quantum of the MERL encoding, 1/1500), so that
+near-black cells do not dominate. Its RMS over the cells (:func:`rms_log_error`) is a different
+and larger figure than ``rmse_log``: dark cells count with their full relative error there,
+while ``ln(1 + f cosθi)`` compresses them. Titles do not state it.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..metrics import FIGURE_METRIC, metric_text, values
 from ._eval import evaluate_model, is_table
 
 #: Floor added to both sides of the ratio (BRDF units).
@@ -57,7 +66,9 @@ def log_ratio(fitted, measured, eps: float = EPS):
 
 
 def rms_log_error(data, model, params, *, max_samples: int = 100_000, seed: int = 0) -> float:
-    """``E`` of the module docstring for ``model(params)`` against ``data`` (NaN if no data)."""
+    """The RMS of the log ratio (module docstring) of ``model(params)`` against ``data`` at the
+    measurements of :func:`error_pairs` (NaN if there are none): every cell's relative error,
+    not the ``rmse_log`` of the titles."""
     wi, wo, rgb = error_pairs(data, max_samples=max_samples, seed=seed)
     if len(rgb) == 0:
         return float("nan")
@@ -65,6 +76,26 @@ def rms_log_error(data, model, params, *, max_samples: int = 100_000, seed: int 
     return float(np.sqrt(np.mean(log_ratio(fitted, rgb) ** 2)))
 
 
+def model_metrics(data, model, params, *, max_samples: int = 100_000, seed: int = 0) -> dict:
+    """:func:`brdffit.metrics.values` of ``model(params)`` against ``data`` at the measurements
+    of :func:`error_pairs` (NaN if there are none)."""
+    wi, wo, rgb = error_pairs(data, max_samples=max_samples, seed=seed)
+    fitted = evaluate_model(model, params, wi, wo) if len(rgb) else rgb
+    return values(fitted, rgb, wi[:, 2], wo[:, 2])
+
+
+def model_error(data, model, params) -> str:
+    """The title text for a model without a fit result: :data:`FIGURE_METRIC` over ``data``."""
+    return format_error(model_metrics(data, model, params)[FIGURE_METRIC])
+
+
+def result_error(result) -> str:
+    """The title text for a fit result: its own :data:`FIGURE_METRIC` (``"rmse_log 0.2957"``),
+    and ``"fit NOT converged"`` after it for a failed fit."""
+    text = format_error(result.metrics[FIGURE_METRIC])
+    return text if result.success else f"{text} (fit NOT converged)"
+
+
 def format_error(value: float) -> str:
-    """The title text for an error value."""
-    return f"RMS ln-ratio {value:.3g}"
+    """The title text for a value of :data:`FIGURE_METRIC` (:func:`brdffit.metrics.metric_text`)."""
+    return metric_text(FIGURE_METRIC, value)

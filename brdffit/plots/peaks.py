@@ -74,19 +74,24 @@ def _draw_panel(ax, meas, fit, theta_d_deg):
     ax.set_title(f"θd = {theta_d_deg:g}°", fontsize=10)
     ax.grid(True, which="major", alpha=0.3)
 
+def figure_size(n: int = len(THETA_D_DEG)) -> tuple[float, float]:
+    """``(width, height)`` in inches of the peak figure of ``n`` panels (two a row)."""
+    cols = 2 if n > 1 else 1
+    return 5.2 * cols, 3.6 * int(np.ceil(n / cols))
+
 
 def plot_peaks(data, model=None, params=None, *, theta_d_deg=THETA_D_DEG, phi_d_deg: float = 90.0,
                error: str | None = None, title: str | None = None, theta_d_tol_deg: float = 2.0,
-               phi_tol_deg: float = 10.0):
+               phi_tol_deg: float = 10.0, fig=None):
     """The specular-peak figure (module docstring); one panel per entry of ``theta_d_deg``.
 
-    ``model``/``params`` are optional (measured only without them); ``error`` is title text.
-    Returns a matplotlib ``Figure``.
+    ``model``/``params`` are optional (measured only without them); ``error`` is title text;
+    ``fig`` a figure or sub-figure to draw into (default: a new one). Returns the figure.
     """
     n = len(theta_d_deg)
     cols = 2 if n > 1 else 1
     rows = int(np.ceil(n / cols))
-    fig = _style.new_figure(5.2 * cols, 3.6 * rows)
+    fig = _style.new_figure(*figure_size(n), fig)
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
     for ax, td in zip(axes, theta_d_deg):
         meas = _measured_row(data, td, phi_d_deg, theta_d_tol_deg, phi_tol_deg)

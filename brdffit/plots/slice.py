@@ -17,7 +17,8 @@ white, hue kept), so the diffuse body, the Fresnel peak and the whole specular p
 readable; Burley's Fig. 1 uses an exposure and gamma instead, which saturates the peak (every
 cell with θh below about 8° is white on a shiny MERL material). The ratio panel is
 ``log10((fit + ε)/(measured + ε))`` (ε of :mod:`.error`),
-the Rec. 709-weighted mean over the channels, on a diverging colormap with symmetric limits.
+the Rec. 709-weighted mean over the channels, on a diverging colormap with symmetric limits; its
+colour bar is labelled in factors (``×2``, ``×0.5``), what a person reads off a ratio.
 Missing cells are drawn in :data:`._style.MISSING_RGB`.
 """
 
@@ -108,12 +109,30 @@ def _show_ratio(fig, ax, meas, fit, valid):
     cmap = _style.diverging_cmap()
     im = ax.imshow(lum.T, origin="lower", extent=(0, 1, 0, 90), aspect="auto",
                    interpolation="nearest", cmap=cmap, vmin=-vlim, vmax=vlim)
-    _decorate(ax, "log10(fitted / measured), Rec. 709-weighted RGB")
-    fig.colorbar(im, ax=ax, label="log10 ratio  (red: fit too bright)", shrink=0.9)
+    _decorate(ax, "fitted ÷ measured, per cell (log scale)")
+    bar = fig.colorbar(im, ax=ax, label="fitted ÷ measured  (red: fit too bright)", shrink=0.9)
+    ticks = ratio_ticks(vlim)
+    bar.set_ticks(ticks, labels=[f"×{10.0 ** t:.3g}" for t in ticks])
+
+
+#: Factors a ratio's colour bar may mark (and their inverses).
+RATIO_FACTORS = (1.01, 1.02, 1.05, 1.1, 1.2, 1.5, 2.0, 3.0, 5.0, 10.0, 30.0, 100.0, 1000.0)
+
+
+def ratio_ticks(vlim: float, per_side: int = 3) -> list[float]:
+    """log10 positions of the colour bar's ticks within ``±vlim``: 1 and the ``per_side``
+    largest :data:`RATIO_FACTORS` that fit, with their inverses."""
+    up = [float(np.log10(f)) for f in RATIO_FACTORS if np.log10(f) <= vlim * (1 + 1e-9)]
+    up = up[-per_side:]
+    return [-t for t in reversed(up)] + [0.0] + up
+
+def figure_size(fitted: bool) -> tuple[float, float]:
+    """``(width, height)`` in inches of the slice figure, with or without the fit's panels."""
+    return (3 * 4.6 + 0.8, 4.6) if fitted else (4.6, 4.6)
 
 
 def plot_slice(data, model=None, params=None, *, error: str | None = None,
-               phi_d_deg: float = 90.0, title: str | None = None):
+               phi_d_deg: float = 90.0, title: str | None = None, fig=None):
     """The image-slice figure (see the module docstring); returns a matplotlib ``Figure``.
 
     Args:
@@ -121,14 +140,15 @@ def plot_slice(data, model=None, params=None, *, error: str | None = None,
         model, params: a fitted model (a :class:`brdffit.Model` or registry name) and its
             parameters; without them only the measured slice is drawn.
         error: text for the title (default: none; :func:`brdffit.plots.diagnostics` passes the
-            RMS ln-ratio of :mod:`.error`).
+            fit's ``rmse_log``, :mod:`.error`).
         phi_d_deg: the φd of the slice. title: replaces the generated title.
+        fig: a figure or sub-figure to draw into (default: a new one of this view's size).
     """
     meas, valid, fit = slice_data(data, model, params, phi_d_deg=phi_d_deg)
     levels = _style.log_levels(meas[valid])
     kind = "" if is_table(data) else f" (samples binned, |φd−{phi_d_deg:g}°|<10°)"
     panels = 1 if fit is None else 3
-    fig = _style.new_figure(4.6 * panels + (0.8 if fit is not None else 0.0), 4.6)
+    fig = _style.new_figure(*figure_size(fit is not None), fig)
     axes = np.atleast_1d(fig.subplots(1, panels))
     _show_rgb(axes[0], meas, valid, levels, f"measured{kind}\n{_style.tonemap_label(*levels)}")
     if fit is not None:

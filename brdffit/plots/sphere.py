@@ -58,6 +58,19 @@ def sphere_directions(size: int = 256, light_dir=DEFAULT_LIGHT):
     return inside, n, to_local(light), to_local(np.array([0.0, 0.0, 1.0]))
 
 
+#: The sides of the image, counter-clockwise from the right, in 45° sectors.
+SIDES = ("right", "top right", "top", "top left", "left", "bottom left", "bottom", "bottom right")
+
+
+def light_side(light) -> str:
+    """Where a light direction ``(x, y, z)`` (unit, image ``x`` right, ``y`` up) comes from, in
+    words: ``"from the top of the image"``, or ``"on the view axis"``."""
+    x, y = float(light[0]), float(light[1])
+    if np.hypot(x, y) < 1e-6:
+        return "on the view axis"
+    return f"from the {SIDES[int(np.round(np.degrees(np.arctan2(y, x)) / 45.0)) % 8]} of the image"
+
+
 def render_sphere(f, size: int = 256, light_dir=DEFAULT_LIGHT) -> np.ndarray:
     """Linear radiance ``(S, S, 3)`` of the sphere shaded with ``f(wi, wo) -> rgb`` (NumPy, N×3).
 
@@ -72,10 +85,15 @@ def render_sphere(f, size: int = 256, light_dir=DEFAULT_LIGHT) -> np.ndarray:
         out[lit] = np.nan_to_num(vals, nan=0.0)
     return out
 
+def figure_size(fitted: bool) -> tuple[float, float]:
+    """``(width, height)`` in inches of the sphere figure, one or two spheres."""
+    return 4.1 * (2 if fitted else 1), 4.6
+
 
 def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DEFAULT_LIGHT,
-                 error: str | None = None, title: str | None = None):
-    """The lit-sphere figure: measured (table lookup / nearest sample) beside the fit, if any."""
+                 error: str | None = None, title: str | None = None, fig=None):
+    """The lit-sphere figure: measured (table lookup / nearest sample) beside the fit, if any;
+    drawn into ``fig`` (a figure or sub-figure) when given, else a new figure."""
     meas = render_sphere(measured_lookup(data), size, light_dir)
     how = "trilinear table lookup" if is_table(data) else "nearest sample"
     images = [(f"measured ({how})", meas)]
@@ -86,7 +104,7 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
     inside, _, wi, wo = sphere_directions(size, light_dir)
     lit = inside & (wi[..., 2] > 0) & (wo[..., 2] > 0)
     levels = _style.log_levels(meas[lit])
-    fig = _style.new_figure(4.1 * len(images), 4.6)
+    fig = _style.new_figure(*figure_size(len(images) > 1), fig)
     axes = np.atleast_1d(fig.subplots(1, len(images)))
     for ax, (label, img) in zip(axes, images):
         ax.imshow(_style.log_tonemap(img, *levels), interpolation="antialiased",
@@ -96,10 +114,8 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
         ax.set_axis_off()
     light = np.asarray(light_dir, float) / np.linalg.norm(light_dir)
     elev = np.degrees(np.arccos(np.clip(light[2], -1, 1)))
-    fig.supxlabel(f"directional light {elev:.0f}° off the view axis,\n"
-                  f"towards ({light[0]:+.2f}, {light[1]:+.2f}) in the image; "
-                  f"{_style.tonemap_label(*levels)}",
-                  fontsize=8)
+    fig.supxlabel(f"directional light {elev:.0f}° off the view axis, {light_side(light)}; "
+                  f"{_style.tonemap_label(*levels)}", fontsize=8)
     name = getattr(model, "name", model) if model is not None else None
     fig.suptitle(title or _style.figure_title(data_name(data), name, error, "Lit sphere"))
     return fig

@@ -38,7 +38,7 @@ def add_arguments(parser) -> None:
                    help=f"steps per walker (default {DEFAULT_STEPS})")
     g.add_argument("--burn", type=int, metavar="N",
                    help=f"burn-in steps dropped (default {DEFAULT_BURN}, or steps/5 if smaller)")
-    g.add_argument("--noise", choices=("fixed", "sampled", "measured"),
+    g.add_argument("--noise", choices=("fixed", "sampled", "measured"), type=str.lower,
                    help="noise scale: fixed at the least-squares estimate, sampled, or measured "
                    "(the sample list's sigma columns); default measured when the input has "
                    "sigma columns, else fixed")

@@ -1,4 +1,6 @@
-"""Corner plot of a posterior (the ``corner`` package), with the truth or the LS optimum marked."""
+"""Corner plot of a posterior (the ``corner`` package), with the truth or the LS optimum marked:
+:func:`corner_figure` returns it (``post.corner()``, shown inline in a notebook),
+:func:`corner_plot` writes it to a file (``post.corner_plot(path)``, the command line's)."""
 
 from __future__ import annotations
 
@@ -54,23 +56,25 @@ def _titles(fig, result, d: int) -> None:
         axes[k, k].set_title(f"{name}\n${mid}^{{+{up}}}_{{-{down}}}$", fontsize=8)
 
 
-def corner_plot(result, path, truths=None):
-    """Write a corner plot of ``result.samples`` to ``path`` (format from the suffix).
+def corner_figure(result, truths=None):
+    """A corner plot of ``result.samples`` (the ``corner`` package), as a matplotlib figure that
+    a notebook shows inline (:class:`brdffit.plots.InlineFigure`, not registered with
+    ``pyplot``).
 
     Dashed lines in each 1-D panel mark the 16/50/84 percentiles; the blue lines mark
     ``truths`` (see :func:`truth_vector`). Each diagonal panel is titled with the name and the
     median with its 16/84 offsets, to the digits the uncertainty supports
     (:func:`interval_digits`); at most three ticks per axis, rotated, with the axis labels
-    set off so they do not overlap the tick labels. Returns the ``matplotlib`` figure
-    (a plain ``Figure``, not registered with ``pyplot``).
+    set off so they do not overlap the tick labels.
     """
     import corner
-    from matplotlib.figure import Figure
+
+    from ..plots import InlineFigure
 
     marks, label = truth_vector(result, truths)
     marks = [None if not np.isfinite(v) else float(v) for v in marks]
     d = len(result.sampled)
-    fig = Figure(figsize=(1.8 * d + 1, 1.8 * d + 1))  # no pyplot: no backend, no global state
+    fig = InlineFigure(figsize=(1.8 * d + 1, 1.8 * d + 1), dpi=80)
     corner.corner(
         np.asarray(result.samples), fig=fig, labels=list(result.sampled), truths=marks,
         quantiles=[0.16, 0.5, 0.84], show_titles=False, max_n_ticks=3, labelpad=0.2,
@@ -84,5 +88,12 @@ def corner_plot(result, path, truths=None):
     _titles(fig, result, d)
     fig.suptitle(f"{result.model_name} posterior of {result.table or 'table'} "
                  f"(blue: {label})", fontsize=11, y=1.0)
+    return fig
+
+
+def corner_plot(result, path, truths=None):
+    """Write :func:`corner_figure` to ``path`` (format from the suffix, 80 dpi, tight bounding
+    box) and return the figure."""
+    fig = corner_figure(result, truths)
     fig.savefig(Path(path), dpi=80, bbox_inches="tight")
     return fig

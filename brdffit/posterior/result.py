@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._columns import columns
 from .diagnostics import Diagnostics
 
 #: The percentiles reported for every sampled scalar (median and a 68% interval).
@@ -91,18 +92,18 @@ class PosteriorResult:
             f"{self.noise['mode']} σ={self.noise['sigma']:.4g}): {s['nwalkers']} walkers x "
             f"{s['nsteps']} steps (burn {s['burn']}, thin {s['thin']}), {s['n_cells']} cells, "
             f"{self.wall_time:.1f} s",
-            f"  {'':>10}   {'p16':>10} {'p50':>10} {'p84':>10}   {'least squares':>22}  "
-            f"{'tau':>6} {'ess':>7}",
         ]
         x_ls = dict(zip(self.names, np.asarray(self.x_ls, float)))
+        rows = [("", "", "p16", "p50", "p84", "least squares", "tau", "ess")]
         for n in self.sampled:
             p = self.percentiles[n]
             ls = f"{x_ls[n]:.5g} ± {self.stderr_ls.get(n, float('nan')):.3g}" if n in x_ls else ""
-            lines.append(
-                f"  {n:>10} = {p[0]:10.5g} {p[1]:10.5g} {p[2]:10.5g}   {ls:>22}  "
-                f"{d.tau[n]:6.1f} {d.ess[n]:7.0f}"
-            )
-        lines += [f"  {n:>10} = {x_ls[n]:.5g} (fixed)" for n in self.fixed]
+            rows.append((n, "=", *(f"{v:.5g}" for v in p[:3]), ls, f"{d.tau[n]:.1f}",
+                         f"{d.ess[n]:.0f}"))
+        width = max([10] + [len(n) for n in [*self.sampled, *self.fixed]])  # the name column
+        lines += columns(rows, ">>>>>>>>", indent="  ", gap=" ",
+                         minimum=(width, 1, 10, 10, 10, 24, 7, 7))
+        lines += [f"  {n:>{width}} = {x_ls[n]:.5g} (fixed)" for n in self.fixed]
         lines.append(f"  acceptance {d.acceptance:.3f} (walkers {d.acceptance_min:.2f}–"
                      f"{d.acceptance_max:.2f}); {'TOO SHORT' if d.too_short else 'chain ≥ 50 τ'}")
         lines += [f"  warning: {m}" for m in d.messages]
@@ -200,6 +201,14 @@ class PosteriorResult:
                 thin=self.settings["thin"],
             )
         return path
+
+    def corner(self, truths=None):
+        """A corner plot of the samples (the ``corner`` package) as a matplotlib figure, shown
+        inline in a notebook; ``truths`` marks values (default: the least-squares optimum). See
+        :func:`~brdffit.posterior.plot.corner_figure`; :meth:`corner_plot` writes a file."""
+        from .plot import corner_figure
+
+        return corner_figure(self, truths)
 
     def corner_plot(self, path, truths=None):
         """A corner plot of the samples (the ``corner`` package) written to ``path``; see

@@ -228,7 +228,8 @@ def sample_posterior(
     """Sample the posterior of a model's free parameters on ``table`` with emcee.
 
     Runs inside ``jax.enable_x64(True)`` (float64 for the call; ``jax.config`` is left as it
-    was), as :func:`brdffit.fit` does.
+    was), with the persistent compilation cache on (:func:`brdffit.compilation_cache.ensure`),
+    as :func:`brdffit.fit` does.
 
     Args:
         table: a path (``str`` or ``PathLike``: ``.binary``, ``.csv``, ``.npz``, read by
@@ -258,10 +259,12 @@ def sample_posterior(
             ``progress(event, info)`` (``sample-step`` with ``step``, ``of``); see
             :mod:`brdffit.progress`.
     """
+    from .. import compilation_cache
     from ..api import load
     from ..progress import resolve
 
     table, _path = load(table)
+    compilation_cache.ensure()
     callback, bar = resolve(progress, desc="posterior")
     try:
         with jax.enable_x64(True):
