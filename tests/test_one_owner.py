@@ -98,6 +98,56 @@ def test_an_exporter_is_one_registry_entry(monkeypatch, tmp_path):
     assert dst.read_text() == export(result, "toy-text").text()
 
 
+# -- input formats: one registry entry each ------------------------------------------------------
+def read_toy(path):
+    """A toy input format for the test below: one measurement a line, ``θi φi θo φo r g b``
+    (degrees; f_r in 1/sr)."""
+    from data_formats import SampleSet
+
+    rows = np.loadtxt(path, ndmin=2)
+
+    def direction(theta, phi):
+        t, p = np.radians(theta), np.radians(phi)
+        return np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1)
+
+    return SampleSet(direction(rows[:, 0], rows[:, 1]), direction(rows[:, 2], rows[:, 3]),
+                     rows[:, 4:7].copy(), np.ones(len(rows), bool), name=path.stem, path=str(path))
+
+
+def test_a_reader_is_one_registry_entry(monkeypatch, tmp_path, capsys):
+    """A new input format needs its reader and one entry in :data:`brdffit.io.READERS`, nothing
+    else: ``brdffit.fit``, the command line's help, ``info``, ``fit`` and ``batch``'s inputs take
+    it from there."""
+    import brdffit
+    from brdffit.batch import inputs
+    from brdffit.cli import main
+    from brdffit.io import READERS
+
+    monkeypatch.setitem(READERS, ".toy", ("toy list", __name__, "read_toy"))
+    rng = np.random.default_rng(3)
+    angles = np.column_stack([rng.uniform(0, 80, 600), rng.uniform(0, 360, 600),
+                              rng.uniform(0, 80, 600), rng.uniform(0, 360, 600)])
+    truth = {"alpha": 0.2, "f0": np.array([0.9, 0.6, 0.3]), "diffuse": np.full(3, 0.1),
+             "f90": 1.0}
+    model = brdffit.get_model("ggx")
+    t = np.radians(angles)
+    wi = np.stack([np.sin(t[:, 0]) * np.cos(t[:, 1]), np.sin(t[:, 0]) * np.sin(t[:, 1]),
+                   np.cos(t[:, 0])], -1)
+    wo = np.stack([np.sin(t[:, 2]) * np.cos(t[:, 3]), np.sin(t[:, 2]) * np.sin(t[:, 3]),
+                   np.cos(t[:, 2])], -1)
+    rgb = np.asarray(model(truth, wi, wo))
+    path = tmp_path / "m.toy"
+    np.savetxt(path, np.column_stack([angles, rgb]), fmt="%.17g")
+
+    assert main(["fit", "--help"]) == 0
+    assert ".toy" in capsys.readouterr().out
+    assert main(["info", str(path)]) == 0
+    assert "600" in capsys.readouterr().out  # its measurements counted
+    result = brdffit.fit(path, "ggx", fixed={"f90": 1.0})
+    assert result.success and result.params["alpha"] == pytest.approx(0.2, rel=1e-4)
+    assert inputs.expand([str(path)]) == [str(path)]  # a batch input, not a list of paths
+
+
 # -- no package reaches into another's private names -------------------------------------------
 #: Private modules other packages may import, and why.
 SHARED_PRIVATE = {
