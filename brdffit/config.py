@@ -103,17 +103,6 @@ def _table_option(flag, help, metavar="NAME=VALUE"):
 _UNIT = dict(kind=float, low=0.0, high=1.0, low_in=False, want="a number in (0, 1]")
 _TOL = "step tolerance of the stall test (default 1e-14 in float64, 1e-6 in float32)"
 
-#: Ranges of the posterior-sampling options (``brdffit fit --mcmc``), checked the same way.
-#: The chain holds ``walkers * steps * parameters`` doubles: 10^4 x 10^5 x 10 would be 80 GB,
-#: so the product is bounded too (:data:`MAX_CHAIN_VALUES`).
-POSTERIOR_OPTION_RANGES = {
-    "walkers": (True, 2, 10_000, True, "an even integer in [2, 10000]"),
-    "steps": (True, 1, 1_000_000, True, "an integer in [1, 1000000]"),
-    "burn": (True, 0, 1_000_000, True, "an integer in [0, 1000000]"),
-    "mcmc_subsample": (True, 1, 2**24, True, "an integer in [1, 16777216]"),
-}
-MAX_CHAIN_VALUES = 10**8
-
 #: The narrowest ``[bounds]`` interval, relative to ``max(1, |bound|)``; narrower ones cannot
 #: be fitted in float64 (the Jacobian degenerates): fix the parameter instead.
 MIN_BOUNDS_WIDTH = 1e-6
@@ -149,10 +138,10 @@ def check_fit_options(options: Mapping, label=None, ranges=None) -> Mapping:
 
     ``options`` maps option names (``rtol``, ``multistart``, ...) to values; ``None`` and names
     without a range are ignored. The ranges are :data:`FIT_OPTION_RANGES` plus ``subsample``
-    (a count in ``[1, 2^24]`` or a fraction in ``(0, 1]``), or ``ranges`` (e.g.
-    :data:`POSTERIOR_OPTION_RANGES`) in their place: every value must be finite and of
-    the right kind (an integer where a count is meant; ``bool`` is not a number). ``label(key)``
-    says how the message names an option (``"--multistart"`` on the command line). Raises
+    (a count in ``[1, 2^24]`` or a fraction in ``(0, 1]``), or ``ranges`` (the ``--mcmc``
+    flags': :data:`brdffit.posterior.options.FLAG_RANGES`) in their place: every value must be
+    finite and of the right kind (an integer where a count is meant; ``bool`` is not a number).
+    ``label(key)`` says how the message names an option (``"--multistart"`` on the command line). Raises
     :class:`~brdffit.errors.ConfigError` ("'multistart' must be an integer in [0, 1000], got
     100000000"); returns ``options`` unchanged.
     """

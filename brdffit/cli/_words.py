@@ -10,12 +10,15 @@ from __future__ import annotations
 import re
 
 from ..config import OPTIONS
+from ..posterior.options import MCMC_OPTIONS
 
 #: Python argument of ``brdffit.fit`` / ``sample_posterior`` → the ``brdffit fit`` flag: the fit
-#: options' flags (:data:`brdffit.config.OPTIONS`) and the ``--mcmc`` group's.
+#: options' flags (:data:`brdffit.config.OPTIONS`), then the ``--mcmc`` group's
+#: (:data:`brdffit.posterior.options.MCMC_OPTIONS`) where the name is not a fit option's
+#: (``subsample`` is the fit's ``--subsample``).
 FLAG_FOR = {
+    **{key: option.flag for key, option in MCMC_OPTIONS.items() if option.flag},
     **{key: option.flag for key, option in OPTIONS.items() if option.flag},
-    "nwalkers": "--walkers", "nsteps": "--steps", "burn": "--burn", "noise": "--noise",
 }
 
 _RULES = (
