@@ -141,7 +141,8 @@ def check_fit_options(options: Mapping, label=None, ranges=None) -> Mapping:
     (a count in ``[1, 2^24]`` or a fraction in ``(0, 1]``), or ``ranges`` (the ``--mcmc``
     flags': :data:`brdffit.posterior.options.FLAG_RANGES`) in their place: every value must be
     finite and of the right kind (an integer where a count is meant; ``bool`` is not a number).
-    ``label(key)`` says how the message names an option (``"--multistart"`` on the command line). Raises
+    ``label(key)`` says how the message names an option (``"--multistart"`` on the command
+    line). Raises
     :class:`~brdffit.errors.ConfigError` ("'multistart' must be an integer in [0, 1000], got
     100000000"); returns ``options`` unchanged.
     """
