@@ -100,6 +100,20 @@ def _table_option(flag, help, metavar="NAME=VALUE"):
         want="a table", table="", flag=flag, metavar=metavar, help=help)})
 
 
+#: The registered losses' and solvers' names, in registry order: :data:`brdffit.fitting.LOSSES`
+#: and :data:`brdffit.fitting.SOLVERS` are built on them, so that the ``--loss`` and ``--solver``
+#: help lists the registry without importing JAX.
+LOSS_NAMES = ("linear", "cosine", "log", "relative")
+SOLVER_NAMES = ("lm", "gauss-newton", "dogleg")
+_LOSS, _SOLVER = "log", "lm"  # the defaults (brdffit.fitting's DEFAULT_LOSS, DEFAULT_SOLVER)
+
+
+def _one_of(names, default) -> str:
+    """``"lm (default), gauss-newton or dogleg"``."""
+    words = [f"{n} (default)" if n == default else n for n in names]
+    return f"{', '.join(words[:-1])} or {words[-1]}" if len(words) > 1 else words[0]
+
+
 _UNIT = dict(kind=float, low=0.0, high=1.0, low_in=False, want="a number in (0, 1]")
 _TOL = "step tolerance of the stall test (default 1e-14 in float64, 1e-6 in float32)"
 
@@ -185,11 +199,11 @@ class FitOptions:
 
     model: str | None = _option(kind=str, want="a model name", default=None)
     loss: str | None = _option(
-        kind=str, want="a loss name", default="log", flag="--loss",
-        help="residual weighting: linear, cosine, log, relative (+huber)")
+        kind=str, want="a loss name", default=_LOSS, flag="--loss",
+        help=f"residual weighting: {_one_of(LOSS_NAMES, _LOSS)} (+huber)")
     solver: str | None = _option(
-        kind=str, want="a solver name", default="lm", table="solver", key="name",
-        flag="--solver", help="lm (Levenberg-Marquardt, default), gauss-newton or dogleg")
+        kind=str, want="a solver name", default=_SOLVER, table="solver", key="name",
+        flag="--solver", help=_one_of(SOLVER_NAMES, _SOLVER))
     init: Mapping = _table_option("--init", "start a parameter at a value; repeatable")
     fixed: Mapping = _table_option(
         "--fix", "hold a parameter at a value (f0=0.04 or f0=0.9,0.6,0.3); repeatable")

@@ -61,3 +61,49 @@ def test_every_flag_needs_mcmc(dest, tmp_path, capsys):
     argv = ["fit", str(tmp_path / "absent.binary"), "--model", "ggx", option.flag, value]
     assert main(argv) == 2
     assert f"{option.flag} only apply to posterior sampling: add --mcmc" in capsys.readouterr().err
+
+
+# -- the --loss and --solver help lists its registry ---------------------------------------------
+HELP_LISTS = [("--loss", "LOSSES"), ("--solver", "SOLVERS")]
+#: The words of those help lines around the names.
+FRAMING = {"residual", "weighting", "default", "or", "huber"}
+
+
+def _help_line(flag: str) -> str:
+    """The help of ``flag`` in ``brdffit fit --help``, read in a fresh process, which must not
+    import JAX to build it."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    code = ("import contextlib, io, sys\nfrom brdffit.cli import main\nout = io.StringIO()\n"
+            "with contextlib.redirect_stdout(out):\n    main(['fit', '--help'])\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('jax', 'emcee')))\n"
+            "print(out.getvalue())")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                       env={**os.environ, "PYTHONPATH": str(root)})
+    assert r.returncode == 0, r.stderr
+    heavy, text = r.stdout.split("\n", 1)
+    assert heavy == "[]", f"building the help imported {heavy}"
+    text = " ".join(text.split())
+    start = text.index(f"{flag} {flag[2:].upper()} ") + len(flag) * 2
+    return text[start:text.index(" --", start)]
+
+
+@pytest.mark.parametrize("flag, registry", HELP_LISTS)
+def test_the_help_lists_exactly_the_registry(flag, registry):
+    import re
+
+    import brdffit.fitting as fitting
+    from brdffit.config import OPTIONS
+
+    names = list(getattr(fitting, registry))
+    line = _help_line(flag)
+    listed = [w for w in re.findall(r"[A-Za-z][\w-]*", line) if w not in FRAMING]
+    assert listed == names, line
+    default = OPTIONS[flag[2:]].default
+    assert f"{default} (default)" in line
+    assert {"DEFAULT_LOSS": fitting.DEFAULT_LOSS, "DEFAULT_SOLVER": fitting.DEFAULT_SOLVER}[
+        f"DEFAULT_{flag[2:].upper()}"] == default
