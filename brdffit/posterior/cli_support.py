@@ -61,7 +61,7 @@ def output_paths(args) -> dict:
 
 
 def _mcmc_options(args, options) -> dict:
-    """The keywords of :class:`~brdffit.posterior.sampler.McmcOptions` the flags set."""
+    """The keywords of :class:`~.options.McmcOptions` the flags set."""
     kw = {"seed": options.seed or 0}
     for dest, key in FLAG_KEYS.items():
         if getattr(args, dest, None) is not None:
