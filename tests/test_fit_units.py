@@ -579,8 +579,8 @@ def test_select_weights_each_residual_by_its_samples_share_of_the_angles():
 
 def test_select_option_errors():
     s = ggx_samples(100)
-    with pytest.raises(ConfigError, match="cutoff"):
-        select(s, get_loss("log"), cutoff=120)
+    with pytest.raises(ConfigError, match="cutoff"):  # the one check of the options
+        brdffit.fit(s, "ggx", cutoff=120)
     with pytest.raises(ConfigError, match="fraction"):
         select(s, get_loss("log"), subsample=1.5)
     with pytest.raises(ConfigError, match="stratified"):
