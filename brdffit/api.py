@@ -28,7 +28,7 @@ import platform
 from pathlib import Path
 
 from .errors import FitError
-from .io import is_path, read_path, sha256
+from .io import formats_text, is_path, read_path, sha256
 
 
 def _jsonable(value):
@@ -109,8 +109,8 @@ def load(table):
         return read_path(table), Path(os.fspath(table))
     if not hasattr(table, "to_samples"):
         raise TypeError(
-            f"table must be a path (str or PathLike: .binary, .csv, .npz) or an object with "
-            f".to_samples() (MERLTable, SampleSet); got {type(table).__name__}"
+            f"table must be a path (str or PathLike: {formats_text()}) or an object with "
+            f".to_samples() (MERLTable, SampleSet, RGLMaterial); got {type(table).__name__}"
         )
     return table, None
 
@@ -121,8 +121,9 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
     the result.
 
     Args:
-        table: a path (``str`` or ``PathLike``; ``.binary`` MERL table, ``.csv``/``.npz`` sample
-            list) or anything with ``.to_samples()``.
+        table: a path (``str`` or ``PathLike``; any format of :data:`brdffit.io.READERS`:
+            ``.binary`` MERL table, ``.csv``/``.npz`` sample list, ``.bsdf`` RGL material) or
+            anything with ``.to_samples()``.
         model: a registry name or a :class:`~brdffit.models.Model`. Monochrome data (a
             sample list with one ``value`` column) fit its grey variant (:mod:`brdffit.grey`).
         options: a :class:`~brdffit.config.FitOptions` (e.g. a preset from

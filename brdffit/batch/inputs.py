@@ -20,9 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BrdffitError
+from ..io import INPUT_SUFFIXES, formats_text, suffixes_text
 
-#: Input formats by suffix; any other existing file given as an input is a list of paths.
-READERS = {".binary": "MERL table", ".csv": "sample list", ".npz": "sample list"}
 _GLOB_CHARS = set("*?[")
 #: The largest list of paths read (64 MiB: a million paths of 64 bytes); a larger one is
 #: refused before it is read.
@@ -56,7 +55,7 @@ def expand(items) -> list[str]:
     """Paths named by ``items``, in order, each once.
 
     An item with ``*``, ``?`` or ``[`` is a glob (``**`` recurses; sorted); an existing file whose
-    suffix is not an input format (``.binary``, ``.csv``, ``.npz``) is a list of paths, one per
+    suffix is not an input format (:data:`brdffit.io.READERS`) is a list of paths, one per
     line (blank lines and ``#`` comments skipped, relative paths taken from the list's folder);
     anything else is a path. A glob that matches nothing or a path that does not exist raises
     :class:`BatchInputError`.
@@ -70,13 +69,13 @@ def expand(items) -> list[str]:
                 raise BatchInputError(f"{item!r} matches no file; check the pattern (quote it "
                                       "so the shell does not expand it)")
             out += found
-        elif Path(item).is_file() and Path(item).suffix.lower() not in READERS:
+        elif Path(item).is_file() and Path(item).suffix.lower() not in INPUT_SUFFIXES:
             out += _read_list(Path(item))
         elif Path(item).is_file():
             out.append(item)
         else:
-            raise BatchInputError(f"{item}: no such file (inputs are .binary MERL tables, "
-                                  ".csv/.npz sample lists, globs, or a text file of paths)")
+            raise BatchInputError(f"{item}: no such file (inputs are {formats_text()} files, "
+                                  "globs, or a text file of paths)")
     return list(dict.fromkeys(out))
 
 
@@ -120,7 +119,7 @@ def _list_line(path, n: int, raw: bytes) -> str:
         raise BatchInputError(
             f"{path}, line {n}: not UTF-8 text (byte 0x{text[exc.start]:02x} at column "
             f"{exc.start + 1}); a list of paths is a UTF-8 text file, one path per line, and "
-            "tables need the suffix .binary, .csv or .npz") from None
+            f"tables need the suffix {suffixes_text()}") from None
     if "\0" in line:
         raise BatchInputError(f"{path}, line {n}: contains a NUL byte, so not a path; a list of "
                               "paths is a text file, one path per line")
@@ -188,15 +187,11 @@ def table_checksum(table) -> str:
 
 
 def read(path):
-    """The table in ``path``: a MERL table (``.binary``) or a sample list (``.csv``, ``.npz``)."""
-    suffix = Path(path).suffix.lower()
-    if suffix == ".binary":
-        from data_formats.merl import read_merl
+    """The table, sample list or material in ``path``, read by its suffix
+    (:func:`brdffit.io.read_path`); an unknown suffix raises :class:`BatchInputError`."""
+    from ..io import InputFormatError, read_path
 
-        return read_merl(path)
-    if suffix in READERS:
-        from data_formats.samplelist import read_samples
-
-        return read_samples(path)
-    raise BatchInputError(f"{path}: unknown input format {suffix or '(no suffix)'!r}; expected "
-                          ".binary, .csv or .npz")
+    try:
+        return read_path(path)
+    except InputFormatError as exc:
+        raise BatchInputError(str(exc)) from None

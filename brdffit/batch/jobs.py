@@ -58,9 +58,10 @@ class Job:
         """The file names this job writes in ``OUTDIR/<material>/`` (``plot``: with figures)."""
         names = {"json": f"{self.model}.json", "meta": f"{self.model}.meta.json"}
         if plot:
-            from ..plots import figure_paths
+            from ..plots import figure_names, figure_paths
 
-            names["plots"] = [p.name for p in figure_paths(f"{self.model}.png")]
+            names["plots"] = [p.name for p in figure_paths(f"{self.model}.png",
+                                                           figure_names(self.source))]
         return names
 
 

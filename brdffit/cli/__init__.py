@@ -102,7 +102,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser.add_argument("--version", action="version", version=f"brdffit {__version__}")
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--quiet", "-q", action="store_true", help="no progress messages")
+    talk = common.add_mutually_exclusive_group()
+    talk.add_argument("--quiet", "-q", action="store_true", help="no progress messages")
+    talk.add_argument("--verbose", "-v", action="store_true",
+                      help="every progress event of a fit on a line (solver steps included), "
+                           "also when stderr is not a terminal; by default a terminal shows one "
+                           "progress bar per fit")
     common.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     _global_options(parser, common)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
@@ -129,10 +134,12 @@ def _global_options(parser, common) -> None:
 def _user_errors() -> tuple[type[BaseException], ...]:
     """Exception types that mean "the user can fix this": one line, exit code 2."""
     from data_formats.samplelist import SampleListFormatError
+    from data_formats.tensorfile import TensorFileError
 
     from ..errors import BrdffitError
 
-    errors: list = [BrdffitError, SampleListFormatError, OSError]
+    # the readers' own error types (brdffit.io.READERS); TensorFileError covers RGLFormatError
+    errors: list = [BrdffitError, SampleListFormatError, TensorFileError, OSError]
     try:
         from data_formats.merl import MERLFormatError
 
@@ -206,6 +213,9 @@ def _main(argv, watcher) -> int:
         if extra:  # reported by the command's parser, so the pointer is to its --help
             _command_parser(parser, args.command).error(
                 f"unrecognized arguments: {' '.join(extra)}")
+        if args.quiet and getattr(args, "verbose", False):  # one before, one after the command
+            _command_parser(parser, args.command).error(
+                "argument --verbose/-v: not allowed with argument --quiet/-q")
     except SystemExit as exc:  # --help, --version (0) and usage errors (2)
         return int(exc.code or 0) if not isinstance(exc.code, str) else EXIT_USAGE
     if watcher is not None:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..errors import BrdffitError
 
-from ..io import INPUT_SUFFIXES, read_path  # noqa: F401 (INPUT_SUFFIXES: used by synth)
+from ..io import read_path
 
 
 class UsageError(BrdffitError):
@@ -86,7 +86,7 @@ def check_params(model, values: dict, flag: str) -> dict:
 
 # -- inputs -----------------------------------------------------------------------------------
 def read_input(path: str):
-    """A MERL table (``.binary``) or a sample list (``.csv``, ``.npz``), by suffix
+    """The input at ``path`` (any format of :data:`brdffit.io.READERS`), read by its suffix
     (:func:`brdffit.io.read_path`, the reader dispatch ``brdffit.fit`` uses for a path); only
     a regular file is opened (:func:`check_readable`)."""
     p = Path(path)
@@ -105,11 +105,6 @@ def check_readable(path: Path) -> None:
     if not stat.S_ISREG(mode):
         raise UsageError(f"{path}: is {describe_mode(mode)}, not a regular file; copy the data "
                          f"into a file and pass that")
-
-
-def is_table(data) -> bool:
-    """True for a MERL table (has a grid), False for a plain sample list."""
-    return hasattr(data, "valid") and getattr(data, "rgb", None) is not None and data.rgb.ndim == 4
 
 
 # -- outputs ----------------------------------------------------------------------------------
@@ -134,24 +129,57 @@ def write_text(path, text: str) -> Path:
 
 # -- progress ---------------------------------------------------------------------------------
 class Progress:
-    """Progress lines on stderr, only when stderr is a terminal and ``--quiet`` is not given.
+    """Progress on stderr for a command, only when stderr is a terminal and ``--quiet`` is not
+    given (``force``: whatever the stream is).
 
-    Solver iterations (``step`` events) overwrite one line; other events get a line each.
+    Calling it prints a message (or any event) as a line of its own. A fit's events go to
+    :attr:`fit_events`, the ``progress`` callback to hand to the fit: by default one
+    :class:`brdffit.progress.Bar` per fit, which counts the solver's steps on one line;
+    with ``verbose`` (``--verbose``), the progress object itself: a line per event, the
+    solver's step events overwriting one line on a terminal (on another stream, where
+    ``--verbose`` also prints them, a line each).
     """
 
-    def __init__(self, quiet: bool = False, stream=None, force: bool | None = None):
+    def __init__(self, quiet: bool = False, stream=None, force: bool | None = None,
+                 verbose: bool = False):
         self.stream = stream or sys.stderr
-        tty = getattr(self.stream, "isatty", lambda: False)()
-        self.enabled = (tty if force is None else force) and not quiet
+        self.tty = getattr(self.stream, "isatty", lambda: False)()
+        if force is None:
+            force = self.tty or verbose
+        self.enabled = force and not quiet
+        self.verbose = verbose
         self.start = time.perf_counter()
         self._inline = False
+        self._bar = None
+
+    @classmethod
+    def of(cls, args) -> Progress:
+        """The progress of a command run with ``args`` (its ``--quiet`` and ``--verbose``)."""
+        return cls(quiet=args.quiet, verbose=getattr(args, "verbose", False))
+
+    @property
+    def fit_events(self):
+        """The ``progress`` argument for a fit: ``None`` when disabled, this object with
+        ``verbose``, else a bar (:class:`brdffit.progress.Bar`) on the stream."""
+        if not self.enabled:
+            return None
+        if self.verbose:
+            return self
+        if self._bar is None:
+            from ..progress import Bar
+
+            self._bar = Bar(file=self.stream)
+        return self._bar
 
     def __call__(self, *event) -> None:
         """Print one event: a message, or whatever the fitter's ``progress`` callback passes."""
         if not self.enabled:
             return
         text = f"[{time.perf_counter() - self.start:6.1f}s] " + " ".join(map(_describe, event))
-        if event and str(event[0]).endswith("step"):
+        if self._bar is not None and self._bar.bar is not None:  # a fit's bar is on the line
+            self._bar.bar.write(text, file=self.stream)
+            return
+        if self.tty and event and str(event[0]).endswith("step"):
             self.stream.write("\r" + text + "\x1b[K")
             self._inline = True
         else:

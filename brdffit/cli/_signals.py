@@ -1,11 +1,11 @@
 """SIGINT and SIGTERM: clean up, say so in one line, exit 130 / 143, never crash on the way out.
 
 Why not the default ``KeyboardInterrupt``: a signal that arrives during a fit lands while XLA's
-worker threads are still running the jitted computation (and calling back into Python for
-progress). Unwinding ``main`` then returns to the interpreter, whose shutdown tears down JAX's
-client and modules under those threads: the process died with SIGSEGV after printing
-"interrupted" in 7 of 12 trials. And a Python handler runs only when the main thread next
-executes bytecode, which during a long jitted call can be many seconds later.
+worker threads are still running the jitted computation. Unwinding ``main`` then returns to the
+interpreter, whose shutdown tears down JAX's client and modules under those threads: the
+process died with SIGSEGV after printing "interrupted" in 7 of 12 trials. And a Python handler
+runs only when the main thread next executes bytecode, which during a long jitted call can be
+many seconds later.
 
 So, while a command runs, both signals get a no-op Python handler plus a wakeup file
 descriptor (:func:`signal.set_wakeup_fd`): the C-level handler writes the signal number into a
@@ -40,6 +40,7 @@ from __future__ import annotations
 import os
 import select
 import signal
+import sys
 import threading
 
 from data_formats._atomic import close_writes, open_writes
@@ -82,6 +83,19 @@ def finish_on_signal(code: int) -> None:
 
 def _noop(signum, frame) -> None:  # the watcher thread does the work
     pass
+
+
+def _close_progress_bars() -> None:
+    """Close the progress bars still drawn (tqdm's: a fit's, a batch's), so that the signal's
+    line comes after the bar's last line and no redraw follows it: the bar's line has no end
+    of line until the bar closes, and a closed bar ignores the updates the running fit still
+    sends."""
+    tqdm = getattr(sys.modules.get("tqdm"), "tqdm", None)  # a command without a bar: no import
+    for bar in list(getattr(tqdm, "_instances", ())):
+        try:
+            bar.close()
+        except Exception:  # noqa: BLE001 - best effort on the way out
+            pass
 
 
 class SignalExit:
@@ -142,6 +156,7 @@ class SignalExit:
                     fn()
                 except Exception:  # noqa: BLE001 - best effort on the way out
                     pass
+            _close_progress_bars()
             try:
                 prog = f"brdffit {self.command}" if self.command else "brdffit"
                 os.write(2, f"{prog}: {_NAMES[signum]}\n".encode())

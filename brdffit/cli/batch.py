@@ -30,6 +30,7 @@ import os
 import sys
 from pathlib import Path
 
+from ..io import formats_text
 from ._common import UsageError
 from ._signals import add_cleanup, remove_cleanup
 from .fitting import add_fit_options
@@ -51,8 +52,8 @@ def add_parser(sub, parents) -> None:
         "did not; 2: bad invocation.",
     )
     p.add_argument("inputs", nargs="+", metavar="INPUT",
-                   help="MERL tables / sample lists, globs ('data/*.binary'), or a text file "
-                   "listing paths one per line")
+                   help=f"input files ({formats_text()}), globs ('data/*.binary'), or a "
+                   "text file listing paths one per line")
     p.add_argument("--model", "-m", help="model names, comma-separated (ggx,beckmann,gtr); "
                    "default: the preset's model")
     add_fit_options(p.add_argument_group("fit options (as for `brdffit fit`, applied to every job)"))

@@ -177,7 +177,7 @@ def _run(args, outdir, figures, result_path, written) -> int:
     from .plotting import write_figures
     from .synth import synthesize_table
 
-    progress = Progress(args.quiet)
+    progress = Progress.of(args)
     model = get_model(MODEL)
     paths = [result_path, *written, outdir / MANIFEST]
     # Every existing output is the demo's own (checked in run) or --force was given; without
@@ -195,7 +195,7 @@ def _run(args, outdir, figures, result_path, written) -> int:
         table = read_merl(path)
         progress(f"fitting {MODEL} to {path.name} ({path.stat().st_size:,} bytes)")
         result = fit(table, model, subsample=args.subsample, throw=False,
-                     progress=progress if progress.enabled else None)
+                     progress=progress.fit_events)
         outputs.write(result_path, lambda tmp_path: write_text(tmp_path, result.to_json() + "\n"))
         outputs.write(figures, lambda base: write_figures(table, base, result, progress=progress),
                       base=True)

@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 
 from ..errors import BrdffitError
+from ..io import formats_text
 from ._words import cli_words
 from ._common import (
     Progress,
@@ -48,13 +49,13 @@ def add_parser(sub, parents) -> None:
         "fit",
         parents=parents,
         allow_abbrev=False,
-        help="fit a model to a MERL table or a sample list",
-        description="Fit a registered model to FILE (.binary MERL table, .csv/.npz sample list) "
+        help="fit a model to a measured table, sample list or material",
+        description=f"Fit a registered model to FILE ({formats_text()}) "
         "and print a summary: parameters with standard errors, error metrics, convergence, "
         "parameters at a bound, time. Exit code 1 if the fit did not converge (outputs are "
         "still written, marked success=false).",
     )
-    p.add_argument("file", metavar="FILE", help="a .binary MERL table or a .csv/.npz sample list")
+    p.add_argument("file", metavar="FILE", help=f"a {formats_text()}")
     p.add_argument("--model", "-m", help="a registered model (see `brdffit models`), or "
                    "several separated by commas (compared side by side); may come from the "
                    "preset instead")
@@ -63,7 +64,8 @@ def add_parser(sub, parents) -> None:
     p.add_argument("--out", "-o", metavar="RESULT.json", help="write the result as JSON")
     p.add_argument("--plot", metavar="FIG.png",
                    help="write the diagnostic figures FIG-slice.png, FIG-peaks.png, "
-                   "FIG-albedo.png, FIG-spheres.png (and FIG-corner.png with --mcmc)")
+                   "FIG-albedo.png, FIG-spheres.png (FIG-polar.png for a .bsdf, "
+                   "FIG-corner.png with --mcmc)")
     p.add_argument("--table", metavar="FITTED.binary",
                    help="write the fitted model rendered over the MERL grid")
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
@@ -213,14 +215,14 @@ def run(args) -> int:
     from ..posterior import cli_support as mcmc
 
     mcmc_paths = [p for p in mcmc.output_paths(args).values() if p]
-    with check_outputs([out, table] + _plot_paths(plot) + mcmc_paths, args.force,
+    with check_outputs([out, table] + _plot_paths(plot, args.file) + mcmc_paths, args.force,
                        sizes={table: _MERL_BYTES} if table else None) as outputs:
         data = read_input(args.file)
-        progress = Progress(quiet=args.quiet)
+        progress = Progress.of(args)
         progress(f"fitting {model.name} to {args.file}")
         try:
             result = fit(data, model, options, throw=False,
-                         progress=progress if progress.enabled else None)
+                         progress=progress.fit_events)
             result = dataclasses.replace(result, message=cli_words(result.message), provenance={
                 **result.provenance, "command": "brdffit fit", "config": list(options.sources)})
             post = _posterior(data, result, args, options, progress, mcmc, outputs)
@@ -267,13 +269,13 @@ def _fit_several(args, models, options, outputs) -> int:
     from ..api import fit
 
     data = read_input(args.file)
-    progress = Progress(quiet=args.quiet)
+    progress = Progress.of(args)
     results = []
     for model in models:
         progress(f"fitting {model.name} to {args.file}")
         try:
             result = fit(data, model, options, throw=False,
-                         progress=progress if progress.enabled else None)
+                         progress=progress.fit_events)
         except BrdffitError as exc:  # the library's advice, in flags
             raise UsageError(cli_words(str(exc))) from exc
         results.append(dataclasses.replace(result, message=cli_words(result.message)))
@@ -326,12 +328,12 @@ def _posterior(data, result, args, options, progress, mcmc, outputs):
     return post
 
 
-def _plot_paths(plot):
+def _plot_paths(plot, source):
     if not plot:
         return []
     from .plotting import figure_paths
 
-    return figure_paths(plot)
+    return figure_paths(plot, source)
 
 
 def _write_table(result, outputs, path, progress) -> None:

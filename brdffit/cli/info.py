@@ -1,4 +1,9 @@
-"""``brdffit info FILE``: the figures of a MERL table or a sample list (no fitting, no JAX).
+"""``brdffit info FILE``: the figures of a MERL table, a sample list or an RGL material (no
+fitting, no JAX).
+
+An RGL material (``.bsdf``) is described by its own fields (symmetry, incidence slices, table
+sizes, channels, the file's description) followed by the figures of the direction pairs a fit
+reads (its ``to_samples()``: the file's measurement pattern), laid out as a sample list's.
 
 A sample list is read piece by piece (:func:`data_formats.samplelist.iter_samples`) and its
 figures gathered as the pieces pass: ``info`` holds the valid colour values (for the exact
@@ -14,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from .._columns import columns
-from ._common import check_readable, is_table, read_input
+from ..io import formats_text, is_table
+from ._common import check_readable, read_input
 
 
 def add_parser(sub, parents) -> None:
@@ -23,10 +29,11 @@ def add_parser(sub, parents) -> None:
         parents=parents,
         allow_abbrev=False,
         help="print a table's figures (dims, valid fraction, channel ranges, peak)",
-        description="Print the figures of a MERL table (.binary) or a sample list (.csv, .npz): "
-        "dimensions, valid fraction, per-channel min/median/max over valid samples, the peak.",
+        description=f"Print the figures of FILE ({formats_text()}): dimensions, valid "
+        "fraction, per-channel min/median/max over valid samples, the peak; for an RGL "
+        "material also its symmetry, grid sizes, channels and description.",
     )
-    p.add_argument("file", metavar="FILE", help="a .binary MERL table or a .csv/.npz sample list")
+    p.add_argument("file", metavar="FILE", help=f"a {formats_text()}")
     p.add_argument("--json", action="store_true", help="print the figures as JSON on stdout")
     p.set_defaults(run=run, needs_jax=False)
 
@@ -157,7 +164,65 @@ def format_info(figures: dict) -> str:
 def figures_of(data) -> dict:
     if is_table(data):
         return {"format": "MERL table", **_jsonable(data.info())}
+    if not hasattr(data, "wi"):  # a measurement that makes its samples (an RGL material)
+        return material_info(data)
     return sample_info(data)
+
+
+def material_info(material) -> dict:
+    """Figures of an RGL material: its fields (what a user needs to know about the file) and
+    :func:`sample_info` of the pairs a fit reads, under ``"samples_read"``."""
+    theta = np.degrees(np.asarray(material.theta_i, float))
+    spectral = material.rgb is None
+    n = material.resolution
+    out = {
+        "format": "RGL material", "path": material.path, "name": material.name,
+        "isotropic": bool(material.isotropic), "reduction": int(material.reduction),
+        "theta_i_slices": int(len(theta)),
+        "theta_i_range_deg": [float(theta.min()), float(theta.max())] if len(theta) else [],
+        "phi_i_slices": int(len(material.phi_i)),
+        "ndf_shape": list(np.shape(material.ndf)), "sigma_shape": list(np.shape(material.sigma)),
+        "vndf_shape": list(np.shape(material.vndf)[-2:]), "table_resolution": [n, n],
+        "channels": "spectral" if spectral else "rgb",
+        "jacobian": bool(material.jacobian), "description": str(material.description),
+    }
+    if spectral:
+        wl = np.asarray(material.wavelengths, float)
+        out["wavelengths"] = int(len(wl))
+        out["wavelength_range_nm"] = [float(wl.min()), float(wl.max())] if len(wl) else []
+    samples = sample_info(material.to_samples())
+    out["samples_read"] = {k: v for k, v in samples.items() if k not in ("format", "path")}
+    return out
+
+
+def format_material(f: dict) -> str:
+    """An RGL material's figures (:func:`material_info`) as aligned text: the file's fields, then
+    the pairs a fit reads, laid out as a sample list's (:func:`format_info`)."""
+    kind = ("isotropic" if f["isotropic"]
+            else f"anisotropic (φi folded by {f['reduction']})" if f["reduction"] > 1
+            else "anisotropic")
+    lo, hi = f["theta_i_range_deg"] or (0.0, 0.0)
+    if f["channels"] == "spectral":
+        wl = f.get("wavelength_range_nm") or (0.0, 0.0)
+        channels = (f"spectral, {f['wavelengths']} wavelengths {wl[0]:g}-{wl[1]:g} nm "
+                    "(reduced to RGB)")
+    else:
+        channels = "3 (RGB)"
+    size = "x".join(map(str, f["table_resolution"]))
+    lines = [
+        f"RGL material {f['name']!r}" + (f" ({f['path']})" if f.get("path") else ""),
+        f"  symmetry     {kind}",
+        f"  incidence    {f['theta_i_slices']} theta_i slices ({lo:.4g}-{hi:.4g} deg) x "
+        f"{f['phi_i_slices']} phi_i slices",
+        f"  tables       reflectance {size} per slice; ndf {'x'.join(map(str, f['ndf_shape']))}, "
+        f"sigma {'x'.join(map(str, f['sigma_shape']))}, vndf {'x'.join(map(str, f['vndf_shape']))}",
+        f"  channels     {channels}",
+        f"  jacobian     {'yes (tables divided by D/(4 sigma))' if f['jacobian'] else 'no'}",
+        f"  description  {' '.join(f['description'].split()) or '-'}",
+        "  read as      the file's measurement pattern (what a fit reads):",
+    ]
+    pairs = format_info({**f["samples_read"], "path": None}).splitlines()[1:]
+    return "\n".join([*lines, *("  " + line for line in pairs)])
 
 
 def _sample_list_figures(path: str) -> dict | None:
@@ -183,5 +248,10 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(figures, indent=2))
     else:
-        print(data.info_text() if data is not None and is_table(data) else format_info(figures))
+        if data is not None and is_table(data):
+            print(data.info_text())
+        elif figures.get("format") == "RGL material":
+            print(format_material(figures))
+        else:
+            print(format_info(figures))
     return 0

@@ -4,8 +4,10 @@
 read without it is refused in one line that lists its models.
 
 ``-o fig.png`` writes ``fig-slice.png``, ``fig-peaks.png``, ``fig-albedo.png`` and
-``fig-spheres.png`` (see :func:`brdffit.plots.figure_paths`); an existing folder receives
-``slice.png`` etc. Existing files are not overwritten without ``--force``.
+``fig-spheres.png``, and for an RGL material also ``fig-polar.png``, the lobe in polar
+coordinates (see :func:`brdffit.plots.figure_paths`, :func:`brdffit.plots.figure_names`); an
+existing folder receives ``slice.png`` etc. Existing files are not overwritten without
+``--force``.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io import formats_text
 from ._common import UsageError, check_outputs, read_input
 
 
@@ -27,12 +30,13 @@ def add_parser(sub, parents) -> None:
         "fitted | log ratio), specular-peak curves, directional albedo, lit spheres. With --fit, "
         "the fitted model from a `brdffit fit --out` result is drawn beside the measurement.",
     )
-    p.add_argument("file", metavar="FILE", help="a .binary MERL table or a .csv/.npz sample list")
+    p.add_argument("file", metavar="FILE", help=f"a {formats_text()}")
     p.add_argument("--fit", metavar="RESULT.json", help="a result written by `brdffit fit --out`")
     add_model_option(p, "draw")
     p.add_argument("--output", "-o", required=True, metavar="FIG.png",
-                   help="FIG.png → FIG-slice.png, FIG-peaks.png, FIG-albedo.png, FIG-spheres.png; "
-                   "an existing folder receives slice.png, ...")
+                   help="FIG.png → FIG-slice.png, FIG-peaks.png, FIG-albedo.png, FIG-spheres.png "
+                   "(and FIG-polar.png, the lobe in polar coordinates, for a .bsdf); an "
+                   "existing folder receives slice.png, ...")
     p.add_argument("--force", action="store_true", help="overwrite existing figures")
     p.set_defaults(run=run)
 
@@ -44,10 +48,12 @@ def add_model_option(p, verb: str) -> None:
                    "(`brdffit fit -m a,b --out`); a file of one result needs none")
 
 
-def figure_paths(path) -> list[Path]:
-    from ..plots import figure_paths as paths
+def figure_paths(path, source=None) -> list[Path]:
+    """The figures written for the input ``source`` (a path or data; ``None``: the ones
+    written for every input) at ``path``."""
+    from ..plots import figure_names, figure_paths as paths
 
-    return paths(path)
+    return paths(path, figure_names(source))
 
 
 def write_figures(data, path, result=None, *, progress=None):
@@ -56,7 +62,7 @@ def write_figures(data, path, result=None, *, progress=None):
     from ..plots import diagnostics, result_error
 
     if progress is not None:
-        progress(f"writing figures {', '.join(str(p) for p in figure_paths(path))}")
+        progress(f"writing figures {', '.join(str(p) for p in figure_paths(path, data))}")
     if result is None:
         return diagnostics(data, path=path)
     from .. import get_model
@@ -134,11 +140,11 @@ def run(args) -> int:
     if args.model and not args.fit:
         raise UsageError(f"--model {args.model} picks a result of --fit RESULT.json; pass --fit")
     result = _read_result(args.fit, model=args.model) if args.fit else None
-    written = figure_paths(args.output)
+    written = figure_paths(args.output, args.file)
     with check_outputs(written, args.force) as outputs:
         data = read_input(args.file)
         outputs.write(args.output, lambda base: write_figures(
-            data, base, result, progress=Progress(args.quiet)), base=True)
+            data, base, result, progress=Progress.of(args)), base=True)
         outputs.publish()
     if not args.quiet:
         print("wrote " + ", ".join(str(p) for p in written))

@@ -2,47 +2,33 @@
 
 A fit sends ``setup``, ``start``, ``scan``, ``warm-done``, ``start-done`` and ``done`` from its
 own code, and one event per solver step (``step``, or ``scan-step``/``warm-step`` in a stage on
-a subset of the cells) from inside the compiled solve, through ``jax.debug.callback``. That
-callback may run on another thread than the fit's, so neither a thread-local nor a context
-variable of the caller reaches it; several fits can run at once (a batch runner's threads, a
-notebook's background job). So each fit's :class:`Events` is registered under an integer id
-while the fit runs, the solver's ``verbose`` hook (:class:`StepReporter`) carries that id as an
-*operand* of the callback (an array of the solver: every fit runs the same compiled program),
-and the callback looks the fit up by it.
+a subset of the cells) with the cost the step left the fit at.
+
+Progress is presentation, never another program: the compiled solve calls nothing back. It
+records the cost after each of its steps (:class:`.solvers.Optimality`, ``history``), and the
+fit's own thread sends the step events of a solve's steps when the solve returns, between the
+compiled rounds of at most ``ROUND_STEPS`` steps (:meth:`.stages.Run.solve`). So a fit with a
+progress callback runs the very program of a fit without one, at no cost to it, and each fit's
+events reach only its own callback, also with fits running in several threads at once.
 """
 
 from __future__ import annotations
 
 import contextlib
-import itertools
 
-import equinox as eqx
-import jax
-import jax.numpy as jnp
-
-#: The fits running now, by id (a fit registers itself for the duration of its solves).
-_RUNNING: dict[int, Events] = {}
-_IDS = itertools.count(1)
+import numpy as np
 
 
 class Events:
     """Where one fit is (start, stage, the cost floor of the running solve) and its callback
-    ``callback(event, info)`` (or ``None``). Use as a context manager around the solves."""
+    ``callback(event, info)`` (or ``None``)."""
 
     def __init__(self, callback=None):
         self.callback = callback
-        self.id = next(_IDS)
         self.start = 0
         self.stage = None  # None, or a solve on a subset of the cells ("warm", "scan")
         self.floor = 0.0  # the constant the solver's cost carries (Problem.cost_floor)
         self.prefix = ""  # "base-" while the simpler model of a refined fit runs
-
-    def __enter__(self) -> Events:
-        _RUNNING[self.id] = self
-        return self
-
-    def __exit__(self, *exc) -> None:
-        _RUNNING.pop(self.id, None)
 
     def emit(self, event: str, **info) -> None:
         if self.callback is not None:
@@ -67,30 +53,13 @@ class Events:
         finally:
             self.stage = None
 
-    def step(self, step, loss) -> None:
-        cost = float(loss) - self.floor  # the solver's cost carries the constant floor
-        self.emit("step" if self.stage is None else f"{self.stage}-step", start=self.start,
-                  step=int(step), cost=cost)
-
-    def reporter(self) -> StepReporter | None:
-        """The solver's ``verbose`` hook for this fit, or ``None`` without a callback."""
+    def steps(self, first: int, solved) -> None:
+        """One step event per step of a solve that returned (a :class:`.solve.Solved`: its
+        ``costs``, the solver's cost after each step, floor included), numbered from
+        ``first``."""
         if self.callback is None:
-            return None
-        return StepReporter(jnp.asarray(self.id, jnp.int32))
-
-
-def _report(fit_id, step, loss) -> None:
-    events = _RUNNING.get(int(fit_id))
-    if events is not None:
-        events.step(step, loss)
-
-
-class StepReporter(eqx.Module):
-    """optimistix ``verbose`` callable: sends (step, cost) to the :class:`Events` of fit
-    ``fit_id``, which is an operand of the callback (see the module docstring)."""
-
-    fit_id: jax.Array
-
-    def __call__(self, **kwargs) -> None:
-        jax.debug.callback(_report, self.fit_id, kwargs["num_steps"][1],
-                           kwargs["loss_this_step"][1])
+            return
+        name = "step" if self.stage is None else f"{self.stage}-step"
+        costs = np.asarray(solved.costs, dtype=float)[: int(solved.steps)]
+        for k, loss in enumerate(costs):
+            self.emit(name, start=self.start, step=first + k, cost=float(loss) - self.floor)

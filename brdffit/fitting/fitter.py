@@ -43,8 +43,11 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             selection), ``start-done``, ``done``; a model that refines a simpler one
             (``Model.refines``) first sends the simpler fit's events prefixed ``base-`` and a
             ``base`` event with its ``model``, ``cost``, ``steps`` and ``success``. Step events
-            carry the cost of the cells of their stage. Each fit's events go to its own
-            callback, also with fits running in several threads at once.
+            carry the step's number in its stage and the cost it left the fit at (of the cells
+            of its stage); they are sent as each round of at most ``ROUND_STEPS`` solver steps
+            returns (:mod:`.events`: the fit runs the same compiled program with or without a
+            callback). Each fit's events go to its own callback, also with fits running in
+            several threads at once.
         throw: raise :class:`~brdffit.errors.FitError` when the solver does not converge or
             the data do not determine the model (status ``degenerate`` or ``implausible``:
             :mod:`.outcome`); the error carries the result (``err.result``). With ``False``
@@ -61,22 +64,21 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
     model = get_model(model)
     settings = Settings.of(given)
     events = Events(progress)
-    solver = make_solver(settings.solver, settings.rtol, settings.atol, events.reporter(),
+    solver = make_solver(settings.solver, settings.rtol, settings.atol, None,
                          COST_NOISE[settings.precision], settings.ftol)
     prep = prepare(table, model, settings)
-    with events:
-        events.emit("setup", n_cells=prep.selection.n_used, n_free=len(prep.scalars.free),
-                    model=model.name)
-        t1 = time.perf_counter()
-        first, scan = [], settings.scan
-        if model.refines is not None and settings.init is None:
-            (prep, first), scan = refined(prep, solver, events), False
-        zs = starts(prep.z0, settings.multistart, settings.seed)
-        if first:  # the refined starts; zs[0] is prep.z0, which is first[0]
-            zs = first + zs[1:]
-        best, costs = best_of(prep.problem, solver, prep.selection.data, zs, settings.max_steps,
-                              scan, events)
-        t2 = time.perf_counter()
+    events.emit("setup", n_cells=prep.selection.n_used, n_free=len(prep.scalars.free),
+                model=model.name)
+    t1 = time.perf_counter()
+    first, scan = [], settings.scan
+    if model.refines is not None and settings.init is None:
+        (prep, first), scan = refined(prep, solver, events), False
+    zs = starts(prep.z0, settings.multistart, settings.seed)
+    if first:  # the refined starts; zs[0] is prep.z0, which is first[0]
+        zs = first + zs[1:]
+    best, costs = best_of(prep.problem, solver, prep.selection.data, zs, settings.max_steps,
+                          scan, events)
+    t2 = time.perf_counter()
     return assemble(prep, best, costs, (t0, t1, t2), events, throw)
 
 

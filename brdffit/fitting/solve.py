@@ -22,7 +22,7 @@ import optimistix as optx
 from .data import FitData
 from .normal_form import normal_form, over_blocks
 from .problem import Problem
-from .solvers import COST_NOISE, end_optimality
+from .solvers import COST_NOISE, end_optimality, with_history
 from .statistics import N_CELL_SUMS, metrics_from
 
 #: XLA CPU options for the fitting program (per program: ``jax.config`` and ``XLA_FLAGS`` are
@@ -64,6 +64,8 @@ class Solved(eqx.Module):
         metrics: the error figures (:func:`.statistics.metrics_from`).
         m: the number of residuals with non-zero weight.
         step_size: the trust region's last step size (NaN for a solver without one).
+        costs: the solver's cost (floor included) after each step, NaN after the last: the
+            step events of a fit's progress (:mod:`.events`).
         still: the solve ended on the stillness test (:func:`.stages.still`, applied by
             :meth:`.stages.Run.solve` between rounds); set on the host, ``False`` from the
             solver.
@@ -80,6 +82,7 @@ class Solved(eqx.Module):
     metrics: dict
     m: jax.Array
     step_size: jax.Array
+    costs: jax.Array | None = None
     still: bool = False
 
     @property
@@ -123,17 +126,19 @@ def _solve(problem: Problem, solver, z0, data, floor, max_steps: int, active, se
     estimate of the second-order term added to the solver's ``JᵀJ``."""
     fn = normal_form(problem.block_sums, problem.chunks, problem.pass_tables, N_CELL_SUMS)
     sol = optx.least_squares(
-        fn, solver, z0, args=(data, floor, active, second), max_steps=max_steps, throw=False,
-        has_aux=True,
+        fn, with_history(solver, max_steps), z0, args=(data, floor, active, second),
+        max_steps=max_steps, throw=False, has_aux=True,
     )
-    aux = sol.state.aux  # JᵀJ, Jᵀdiag(r²)J and the error sums at sol.value
+    state = sol.state.inner  # optimistix's, inside Optimality's (.solvers.Recorded)
+    aux = state.aux  # JᵀJ, Jᵀdiag(r²)J and the error sums at sol.value
     _, dxdz = jax.jvp(problem.physical, (sol.value,), (jnp.ones_like(sol.value),))
     metrics, cost, m = metrics_from(aux["sum_r2"], aux["extra"])
-    step = getattr(sol.state.search_state, "step_size", jnp.nan)
+    step = getattr(state.search_state, "step_size", jnp.nan)
     return Solved(
         z=sol.value, result=sol.result, steps=sol.stats["num_steps"], cost=cost.astype(z0.dtype),
         omega=end_optimality(sol).astype(z0.dtype), jtj=aux["jtj"], meat=aux["meat"], dxdz=dxdz,
         metrics=metrics, m=m, step_size=jnp.asarray(step, z0.dtype),
+        costs=sol.state.costs.astype(z0.dtype),
     )
 
 

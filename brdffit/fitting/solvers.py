@@ -42,6 +42,8 @@ solver", "Convergence tests").
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -298,10 +300,16 @@ class Optimality(optx.AbstractLeastSquaresSolver):
     optimistix's branch for an accepted step) and keep it in their state (:class:`_BoxState`):
     one instance of :func:`box_step` for the test in the compiled program instead of one each
     for optimistix's initial and per-step termination checks and the end point.
+
+    With ``history = n`` (:func:`with_history`) the state (:class:`Recorded`) also keeps the
+    cost ``½‖r‖²`` of the last accepted point after each of the first ``n`` steps: what a
+    fit's progress reports, read on the host when the solve returns (the program calls
+    nothing back, :mod:`brdffit.fitting.events`).
     """
 
     inner: optx.AbstractLeastSquaresSolver
     ftol: jax.Array = 1e-9  # an array: another tolerance needs no recompile
+    history: int = eqx.field(static=True, default=0)
 
     @property
     def rtol(self):
@@ -316,12 +324,19 @@ class Optimality(optx.AbstractLeastSquaresSolver):
         return self.inner.norm
 
     def init(self, fn, y, args, options, f_struct, aux_struct, tags):
-        return self.inner.init(fn, y, args, options, f_struct, aux_struct, tags)
+        inner = self.inner.init(fn, y, args, options, f_struct, aux_struct, tags)
+        return Recorded(inner, jnp.full(self.history, jnp.nan, y.dtype), jnp.array(0))
 
     def step(self, fn, y, args, options, state, tags):
-        return self.inner.step(fn, y, args, options, state, tags)
+        y, inner, aux = self.inner.step(fn, y, args, options, state.inner, tags)
+        costs = state.costs
+        if self.history:
+            cost = 0.5 * jnp.sum(jnp.square(inner.f_info.residual))  # the accepted point's
+            costs = costs.at[state.count].set(cost.astype(costs.dtype), mode="drop")
+        return y, Recorded(inner, costs, state.count + 1), aux
 
     def terminate(self, fn, y, args, options, state, tags):
+        state = state.inner
         done, result = self.inner.terminate(fn, y, args, options, state, tags)
         # optimistix passes the iterate from *before* the step here; the accepted point is the
         # one the descent was last queried at
@@ -332,12 +347,30 @@ class Optimality(optx.AbstractLeastSquaresSolver):
         return done | ((omega <= self.ftol) & fresh), result
 
     def postprocess(self, fn, y, aux, args, options, state, tags, result):
-        return self.inner.postprocess(fn, y, aux, args, options, state, tags, result)
+        return self.inner.postprocess(fn, y, aux, args, options, state.inner, tags, result)
+
+
+class Recorded(eqx.Module):
+    """:class:`Optimality`'s state: the inner solver's (``inner``), the cost after each step
+    (``costs``, NaN after the last; empty without ``history``) and the steps taken
+    (``count``)."""
+
+    inner: object
+    costs: jax.Array
+    count: jax.Array
+
+
+def with_history(solver: Optimality, steps: int) -> Optimality:
+    """``solver`` recording the cost after each of its first ``steps`` steps (a static length:
+    the solve's ``max_steps``)."""
+    return dataclasses.replace(solver, history=int(steps))
 
 
 def end_optimality(sol):
-    """``ω`` (:func:`optimality`) at the end point of an optimistix solution ``sol``."""
-    return _omega(sol.state, getattr(sol.state.descent_state, "y", sol.value))
+    """``ω`` (:func:`optimality`) at the end point of an optimistix solution ``sol`` (of an
+    :class:`Optimality` solver)."""
+    state = sol.state.inner
+    return _omega(state, getattr(state.descent_state, "y", sol.value))
 
 
 def _array(value):

@@ -183,6 +183,7 @@ class Run:
                 self.wait()
             second = second_order(self.problem, z0, self.data, active) if model else None
             out = solve(self.problem, solver, z0, self.data, floor, steps, active, second)
+            self.events.steps(total, out)
             total += int(out.steps)
             if not (out.ran_out and out.finite):
                 break

@@ -11,6 +11,17 @@ difference angle, Rusinkiewicz 1998):
   (RTR eq. 9.41) ``D(θh)/D(0) = 1/2`` at ``tan²θh = α²(√2 − 1)``, so
   ``α ≈ tan θ½ / 0.6436``; at the peak ``f ≈ F0 D(0) / (4 cos²θd)`` (RTR eq. 9.34 with
   ``G2 ≈ 1``), so ``F0 ≈ 4π α² cos²θd H``.
+* **anisotropy** ``α_x, α_y`` and the azimuth ``φ_t`` of the ``α_x`` axis: anisotropic GGX
+  (RTR eq. 9.53) is ``D ∝ h_z⁻⁴ (1 + sᵀAs)⁻²`` in the half vector's slope
+  ``s = (h_x, h_y)/h_z``, ``A = R diag(α_x⁻², α_y⁻²) Rᵀ`` with ``R`` the rotation by ``φ_t``. With
+  the lobe's excess ``e`` (channel mean) times ``cos θi cos θo h_z⁴`` (which undoes the
+  microfacet denominator and the ``h_z⁻⁴``), ``u = e'^{-1/2} = c₀ (1 + sᵀAs)`` is *linear* in
+  ``c₀`` and ``c₀A``: a weighted least-squares fit on the cells of the lobe (``θd < 40°``,
+  excess above 5 % of the peak; rows weighted by ``1/u``, i.e. relative error in ``e``) gives
+  ``A``, whose eigenvalues are ``α⁻²`` and whose eigenvectors are the axes. The labelling with
+  ``|φ_t| ≤ π/4`` is kept (:mod:`brdffit.models.frame`). Where the half vectors do not span
+  the azimuths (a MERL table: every half vector in the x–z plane), the system is singular and
+  the lobe reads as isotropic (``α_x = α_y = α``, ``φ_t = 0``).
 
 A model maps these features onto its parameters itself when it declares a start hook
 (``Model.start``, e.g. Disney's ``base_color``/``metallic``/``roughness``/``specular``);
@@ -39,6 +50,14 @@ class Features:
     height: np.ndarray  # specular excess at the peak, RGB
     alpha: float  # GGX-equivalent roughness from the peak width
     f0: np.ndarray  # Schlick F0 from height and width, RGB
+    alpha_x: float | None = None  # the widths along the lobe's principal axes (None: alpha)
+    alpha_y: float | None = None
+    frame_angle: float = 0.0  # azimuth of the alpha_x axis from the data's x axis, |.| <= π/4
+
+    def __post_init__(self):
+        for name in ("alpha_x", "alpha_y"):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, float(self.alpha))
 
 
 def _angles(wi, wo):
@@ -101,7 +120,55 @@ def measure(rgb, wi, wo, good) -> Features:
     alpha = float(np.clip(np.tan(theta_half) / GGX_HALF_WIDTH, 2e-3, 0.9))
     cos_d = np.cos(np.median(theta_d[near][order]))
     f0 = np.clip(4 * np.pi * alpha**2 * cos_d**2 * height, 0.01, 0.95)
-    return Features(diffuse, height, alpha, f0)
+    aniso = anisotropy(excess.mean(axis=1)[near], wi[near], wo[near], float(height.mean()))
+    if aniso is None:
+        return Features(diffuse, height, alpha, f0)
+    return Features(diffuse, height, alpha, f0, *aniso)
+
+
+#: The widths :func:`anisotropy` reports are clipped to this range (as ``alpha``).
+ALPHA_RANGE = (2e-3, 0.9)
+#: Fewest lobe cells, and the smallest ratio of the least to the largest singular value of
+#: the (column-normalized) system, for which :func:`anisotropy` trusts its solution.
+ANISO_MIN_CELLS, ANISO_MIN_SINGULAR = 20, 1e-3
+
+
+def anisotropy(excess, wi, wo, height: float):
+    """``(α_x, α_y, φ_t)`` of the lobe (module docstring), or ``None`` where the cells do not
+    determine it (too few cells, half vectors in one plane, no positive-definite fit).
+
+    ``excess``: the channel-mean specular excess of each cell; ``height``: the peak's excess
+    (sets which cells belong to the lobe)."""
+    h = wi + wo
+    h = h / np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-300)
+    hz = h[:, 2]
+    lobe = (excess > 0.05 * height) & (hz > 0.2) & (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    if np.count_nonzero(lobe) < ANISO_MIN_CELLS:
+        return None
+    e = excess[lobe] * wi[lobe, 2] * wo[lobe, 2] * hz[lobe] ** 4
+    sx, sy = h[lobe, 0] / hz[lobe], h[lobe, 1] / hz[lobe]
+    u = 1.0 / np.sqrt(e)
+    design = np.stack([np.ones_like(sx), sx * sx, 2.0 * sx * sy, sy * sy], axis=1) / u[:, None]
+    scale = np.linalg.norm(design, axis=0)
+    if np.any(scale == 0) or not np.all(np.isfinite(design)):
+        return None
+    sol, _, _, sing = np.linalg.lstsq(design / scale, np.ones_like(u), rcond=None)
+    if sing[-1] < ANISO_MIN_SINGULAR * sing[0]:
+        return None
+    c0, axx, axy, ayy = sol / scale
+    if not c0 > 0:
+        return None
+    lam, vec = np.linalg.eigh(np.array([[axx, axy], [axy, ayy]]) / c0)
+    if not np.all(lam > 0):
+        return None
+    widths = np.clip(1.0 / np.sqrt(lam), *ALPHA_RANGE)  # eigh: ascending λ, so widest first
+    angle = float(np.arctan2(vec[1, 0], vec[0, 0]))
+    angle = (angle + np.pi / 2) % np.pi - np.pi / 2  # the axis, in [-π/2, π/2)
+    ax, ay = float(widths[0]), float(widths[1])
+    if abs(angle) > np.pi / 4:  # the other labelling: axes swapped, a quarter turn
+        angle -= np.copysign(np.pi / 2, angle)
+        ax, ay = ay, ax
+    return ax, ay, angle
 
 
 def by_name(feat: Features) -> dict:
@@ -110,8 +177,9 @@ def by_name(feat: Features) -> dict:
         "diffuse": feat.diffuse,
         "f0": feat.f0,
         "alpha": feat.alpha,
-        "alpha_x": feat.alpha,
-        "alpha_y": feat.alpha,
+        "alpha_x": feat.alpha_x,
+        "alpha_y": feat.alpha_y,
+        "frame_angle": feat.frame_angle,
         "alpha_1": feat.alpha,
         "alpha_2": min(0.9, 4.0 * feat.alpha),
     }

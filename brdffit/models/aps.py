@@ -21,7 +21,9 @@ from ..terms.aps.brdf import aps_combine, aps_per_pair, aps_prepare
 from ..terms.aps.distributions import AnisotropicGaussian, Velvet, satin, v_groove
 from ..terms.aps.specular import CORRELATED, UNCORRELATED
 from ..terms.aps.tables import Resolution
+from .frame import FRAME_ANGLE, rotated, rotated_stages
 from .registry import Model, Param, register
+from .starts import aps_gaussian
 
 
 F0 = Param(
@@ -70,6 +72,11 @@ def _staged(make, shadowing, resolution):
     return {"fn": fn, "stages": (prepare, per_pair, aps_combine)}
 
 
+def _in_frame(staged):
+    """A :func:`_staged` model turned by its ``frame_angle`` (:mod:`brdffit.models.frame`)."""
+    return {"fn": rotated(staged["fn"]), "stages": rotated_stages(staged["stages"])}
+
+
 def _gaussian(p):
     dtype, q = _dt(p, "sigma_x", "sigma_y", "f0", "diffuse")
     return AnisotropicGaussian(q["sigma_x"], q["sigma_y"]), q["f0"], q["diffuse"], dtype
@@ -98,8 +105,10 @@ APS_GAUSSIAN = register(Model(
         DIFFUSE, F0,
         Param("sigma_x", (), *SIGMA_BOUNDS, 0.2, "slope width along the tangent x (eq. 34)", log=True),
         Param("sigma_y", (), *SIGMA_BOUNDS, 0.2, "slope width along the bitangent y (eq. 34)", log=True),
+        FRAME_ANGLE,
     ),
-    **_staged(_gaussian, UNCORRELATED, ANISO_RESOLUTION), isotropic=False, reference="APS 2000 eqs. 26, 25, 18, 30, 31, 34",
+    **_in_frame(_staged(_gaussian, UNCORRELATED, ANISO_RESOLUTION)), isotropic=False,
+    start=lambda features: aps_gaussian(features, SIGMA_BOUNDS), reference="APS 2000 eqs. 26, 25, 18, 30, 31, 34",
 ))
 
 APS_VELVET = register(Model(

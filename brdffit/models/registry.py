@@ -134,7 +134,9 @@ class Model:
     ``start(features) -> {name: value}``, from features the fitter reads off the data
     (:class:`brdffit.fitting.start.Features`: ``diffuse``, the diffuse albedo, RGB; ``height``,
     the specular peak's excess over it, RGB; ``alpha``, a GGX roughness from the peak's width;
-    ``f0``, a Schlick ``F0`` from height and width, RGB). The fitter moves each value inside the
+    ``f0``, a Schlick ``F0`` from height and width, RGB; ``alpha_x``, ``alpha_y``,
+    ``frame_angle``, the lobe's widths along its principal axes and the azimuth of the first,
+    equal to ``alpha`` and 0 where the data do not show them). The fitter moves each value inside the
     parameter's bounds and keeps the declared default for a parameter the hook does not name.
     Without a hook the features go to parameters by name (``diffuse``, ``f0``, ``alpha``...);
     :mod:`brdffit.models.starts` has the hooks of the built-in models.

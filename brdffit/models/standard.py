@@ -14,6 +14,7 @@ from ..terms.diffuse import lambert
 from ..terms.fresnel import schlick
 from ..terms.microfacet import microfacet_specular
 from ..terms.ndf import GGX, GTR, Beckmann, BlinnPhong
+from .frame import FRAME_ANGLE, rotated
 from .registry import Model, Param, PerPass, register
 from .starts import two_lobes_from_one
 
@@ -81,15 +82,19 @@ GGX_MODEL = register(
 GGX_ANISO_MODEL = register(
     Model(
         name="ggx-aniso",
-        description="Lambert + anisotropic GGX specular (α_x along the tangent, α_y along the bitangent)",
+        description=(
+            "Lambert + anisotropic GGX specular (α_x along the tangent, α_y along the "
+            "bitangent; the tangent at azimuth frame_angle)"
+        ),
         params=(
             DIFFUSE,
             F0,
             Param("alpha_x", (), *ALPHA_BOUNDS, 0.1, "roughness along the tangent x", log=True),
             Param("alpha_y", (), *ALPHA_BOUNDS, 0.1, "roughness along the bitangent y", log=True),
             F90,
+            FRAME_ANGLE,
         ),
-        fn=_single_lobe(lambda p: GGX(p["alpha_x"], p["alpha_y"])),
+        fn=rotated(_single_lobe(lambda p: GGX(p["alpha_x"], p["alpha_y"]))),
         isotropic=False,
         reference="RTR eqs. 9.34, 9.53, 9.42 with 9.51, 9.18",
     )

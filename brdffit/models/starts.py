@@ -16,6 +16,12 @@ inside the parameters' bounds.
   complex-IOR form takes ``η = 1`` and the ``k`` whose normal-incidence reflectance
   ``((η − 1)² + k²)/((η + 1)² + k²) = k²/(4 + k²)`` is ``F0``: ``k = 2 √(F0/(1 − F0))``.
 
+* **the APS anisotropic Gaussian** (``aps-gaussian``): its widths from the lobe's measured
+  principal widths ``α_x, α_y`` and its ``frame_angle`` from their axes (the features'
+  anisotropy, :class:`brdffit.fitting.start.Features`). ``p = exp(−s²/σ²)`` in the slope ``s``
+  falls to half at ``s² = σ² ln 2``, GGX at ``s² = α²(√2 − 1)``: equal half widths give
+  ``σ = α √((√2 − 1)/ln 2)`` (:data:`GAUSSIAN_PER_GGX`).
+
 ``two-lobe-ggx`` starts from a fitted ``ggx`` instead (``Model.refines``,
 :func:`two_lobes_from_one`): with the blend at 0 (or 1) it is the one-lobe fit, so the two-lobe
 fit cannot end above it.
@@ -63,6 +69,18 @@ def rough_conductor(features, anisotropic: bool = False, fresnel: str = "ior") -
         out["eta"] = np.ones(3)
         out["k"] = 2.0 * np.sqrt(f0 / (1.0 - f0))
     return out
+
+
+#: ``σ/α`` of an APS Gaussian with the half width of a GGX lobe (module docstring).
+GAUSSIAN_PER_GGX = float(np.sqrt((np.sqrt(2.0) - 1.0) / np.log(2.0)))
+
+
+def aps_gaussian(features, bounds=(0.0, np.inf)) -> dict:
+    """The start of ``aps-gaussian`` (module docstring), its widths clipped to ``bounds``."""
+    return {"diffuse": features.diffuse, "f0": features.f0,
+            "sigma_x": float(np.clip(GAUSSIAN_PER_GGX * features.alpha_x, *bounds)),
+            "sigma_y": float(np.clip(GAUSSIAN_PER_GGX * features.alpha_y, *bounds)),
+            "frame_angle": features.frame_angle}
 
 
 #: The second lobe of :func:`two_lobes_from_one` starts this factor wider (or narrower) than the

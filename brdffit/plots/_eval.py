@@ -1,16 +1,20 @@
 """Evaluating what a figure shows: the fitted model (JAX, chunked) and the measured data (NumPy).
 
-A figure receives either a measured MERL table (``data_formats.merl.MERLTable``: ``rgb``
-``(n_th, n_td, n_pd, 3)``, ``valid``) or a :class:`data_formats.SampleSet` of arbitrary direction
-pairs. Both are reduced here to the two things the figures need:
+A figure receives a measured MERL table (``data_formats.merl.MERLTable``: ``rgb``
+``(n_th, n_td, n_pd, 3)``, ``valid``; :func:`brdffit.io.is_table`), a
+:class:`data_formats.SampleSet` of arbitrary direction pairs, or a measurement that evaluates
+itself at any direction pair (an RGL material, ``data_formats.rgl.RGLMaterial``: ``eval(wi, wo)``,
+what Mitsuba's ``measured`` BSDF renders). All are reduced here to the two things the figures
+need:
 
 * :func:`evaluate_model`: ``f_r`` of a fitted model at NumPy directions, compiled once per model
   (parameters are arguments, not constants) and evaluated in fixed-size chunks, the last one
   padded, so that memory stays bounded and every call with any batch size reuses one compilation.
 * :func:`measured_lookup`: ``f_r`` of the measurement at arbitrary direction pairs, with ``NaN``
   where there is no data. A table is looked up with ``data_formats.merl.lookup_linear``
-  (trilinear in warped θh, θd, φd); a sample set by its nearest sample in the same warped
-  coordinates, within ``max_dist`` (so sparse goniometric data leaves honest holes).
+  (trilinear in warped θh, θd, φd); a measurement with ``eval`` by that method (so anisotropy is
+  seen); a sample set by its nearest sample in the same warped coordinates, within ``max_dist``
+  (so sparse goniometric data leaves honest holes).
 """
 
 from __future__ import annotations
@@ -18,13 +22,29 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io import is_table  # noqa: F401  (re-exported for the figures)
 from ..models.evaluate import CHUNK, evaluate_model  # noqa: F401  (re-exported for the figures)
 
 
-def is_table(data) -> bool:
-    """Whether ``data`` is a MERL-layout table (``rgb`` of shape ``(n_th, n_td, n_pd, 3)``)."""
-    rgb = getattr(data, "rgb", None)
-    return rgb is not None and np.ndim(rgb) == 4 and hasattr(data, "valid")
+_VIEW: list = []  # [(weak reference to the data, its samples)]: the last one made
+
+
+def sample_view(data):
+    """The measured points that the binned figures read: a table or a sample set as it is, any
+    other measurement (an RGL material) as its ``to_samples()`` (the file's own measurement
+    pattern), made once for the figures of one material (the last one is kept)."""
+    import weakref
+
+    if is_table(data) or (hasattr(data, "wi") and hasattr(data, "wo")):
+        return data
+    if _VIEW and _VIEW[0][0]() is data:
+        return _VIEW[0][1]
+    samples = data.to_samples()
+    try:
+        _VIEW[:] = [(weakref.ref(data), samples)]
+    except TypeError:  # not weakly referable: not kept
+        _VIEW.clear()
+    return samples
 
 
 def data_name(data, fallback: str = "measured") -> str:
@@ -41,7 +61,8 @@ def measured_lookup(data, *, max_dist: float = 0.03):
     """A function ``(wi, wo) -> rgb`` ``(..., 3)`` giving the measured ``f_r``, NaN where unknown.
 
     Tables: ``data_formats.merl.lookup_linear`` (its treatment of missing cells applies; a
-    non-finite result stays NaN). Sample sets: the nearest valid sample in the coordinates
+    non-finite result stays NaN). A measurement with ``eval(wi, wo)`` (an RGL material): that
+    method, NaN below the horizon. Sample sets: the nearest valid sample in the coordinates
     ``(sqrt(θh/(π/2)), θd/(π/2), φd/π)`` (MERL's warp; φd folded to [0, π) and periodic), NaN when
     it is farther than ``max_dist`` in those unit coordinates (0.03 ≈ 2.7° of θd).
     """
@@ -55,7 +76,23 @@ def measured_lookup(data, *, max_dist: float = 0.03):
             return out.reshape(wi.shape[:-1] + (3,))
 
         return table_lookup
+    if callable(getattr(data, "eval", None)):
+        return _evaluated_lookup(data)
     return _nearest_sample_lookup(data, max_dist)
+
+
+def _evaluated_lookup(data):
+    """``data.eval`` at any shape of directions; NaN where it is not finite, and where either
+    direction is below the horizon (no measurement there)."""
+
+    def evaluated(wi, wo):
+        wi, wo = np.broadcast_arrays(np.asarray(wi, float), np.asarray(wo, float))
+        a, b = wi.reshape(-1, 3), wo.reshape(-1, 3)
+        out = np.asarray(data.eval(a, b), float).reshape(-1, 3)
+        out = np.where(np.isfinite(out) & ((a[:, 2] > 0) & (b[:, 2] > 0))[:, None], out, np.nan)
+        return out.reshape(wi.shape[:-1] + (3,))
+
+    return evaluated
 
 
 def warped_coords(wi, wo) -> np.ndarray:

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..metrics import FIGURE_METRIC, metric_text, values
-from ._eval import evaluate_model, is_table
+from ._eval import evaluate_model, is_table, sample_view
 
 #: Floor added to both sides of the ratio (BRDF units).
 EPS = 1e-3
@@ -50,6 +50,7 @@ def error_pairs(data, *, max_samples: int = 100_000, seed: int = 0):
             idx = np.sort(rng.choice(idx, max_samples, replace=False))
         wi, wo, rgb = _table_pairs(data, idx)
     else:
+        data = sample_view(data)
         ok = np.flatnonzero(np.asarray(data.valid, bool))
         if ok.size > max_samples:
             ok = np.sort(rng.choice(ok, max_samples, replace=False))

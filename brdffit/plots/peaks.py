@@ -20,7 +20,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import NullFormatter
 
 from . import _style
-from ._eval import data_name, evaluate_model, is_table, warped_coords
+from ._eval import data_name, evaluate_model, is_table, sample_view, warped_coords
 
 #: Default θd rows (degrees).
 THETA_D_DEG = (1.0, 30.0, 60.0, 80.0)
@@ -39,6 +39,7 @@ def _measured_row(data, theta_d_deg, phi_d_deg, td_tol, pd_tol):
         rgb = np.asarray(data.rgb, float)[:, j, k]
         ok = np.asarray(data.valid, bool)[:, j, k]
         return th[ok], rgb[ok]
+    data = sample_view(data)
     ok = np.asarray(data.valid, bool) & np.all(np.isfinite(data.rgb), axis=-1)
     u = warped_coords(data.wi[ok], data.wo[ok])
     near = np.abs(u[:, 1] * 90.0 - theta_d_deg) < td_tol

@@ -10,6 +10,10 @@ interesting features of the MERL materials are visible in this one slice.
 * From a sample set (no grid) the view is *binned*: samples with ``|φd − 90°| < phi_tol_deg``
   are averaged on a coarse (warped θh, θd) grid, and the fit is evaluated at the same samples and
   binned the same way, so both panels see identical coverage. Empty bins count as missing.
+* From a measurement that evaluates itself (an RGL material, ``eval``) the slice is evaluated
+  at the centres of a (warped θh, θd) grid with the half vector's azimuth φh = 0 (the plane of
+  the file's x axis; an anisotropic material has other slices at other φh), measured and
+  fitted at the same directions; cells with a direction below the horizon are missing.
 
 Display: both images share one logarithmic tone mapping of the luminance
 (:func:`._style.log_tonemap`: the measured median at 0.4, the measured 99.9th percentile at
@@ -28,7 +32,8 @@ import numpy as np
 from matplotlib.patches import Patch
 
 from . import _style
-from ._eval import data_name, evaluate_model, is_table, warped_coords
+from ._eval import (data_name, evaluate_model, is_table, measured_lookup, sample_view,
+                    warped_coords)
 from .error import log_ratio
 
 
@@ -71,6 +76,20 @@ def _binned_slice(samples, model, params, phi_d_deg: float, tol_deg: float, bins
     return binned(rgb), count > 0, fit
 
 
+def _evaluated_slice(data, model, params, phi_d_deg: float, bins: int):
+    from data_formats.rusinkiewicz import dirs_from_half_diff
+
+    centre = (np.arange(bins) + 0.5) / bins
+    uh, ud = np.meshgrid(centre, centre, indexing="ij")
+    th, td = np.radians(_style.unwarp_theta_h(uh)), ud * np.pi / 2
+    wi, wo = (np.asarray(w, float) for w in
+              dirs_from_half_diff(th, td, np.full_like(th, np.radians(phi_d_deg))))
+    meas = measured_lookup(data)(wi, wo)
+    valid = np.all(np.isfinite(meas), axis=-1)
+    fit = evaluate_model(model, params, wi, wo) if model is not None else None
+    return np.where(valid[..., None], meas, 0.0), valid, fit
+
+
 def slice_data(data, model=None, params=None, *, phi_d_deg: float = 90.0, phi_tol_deg: float = 10.0,
                bins: int = 45):
     """``(measured, valid, fitted)`` of the slice, each indexed ``[θh cell, θd cell]``.
@@ -83,7 +102,9 @@ def slice_data(data, model=None, params=None, *, phi_d_deg: float = 90.0, phi_to
         n_pd = np.shape(data.valid)[2]
         k = int(np.clip(np.floor(phi_d_deg / 180.0 * n_pd), 0, n_pd - 1))
         return _table_slice(data, model, params, k)
-    return _binned_slice(data, model, params, phi_d_deg, phi_tol_deg, bins)
+    if callable(getattr(data, "eval", None)):
+        return _evaluated_slice(data, model, params, phi_d_deg, bins)
+    return _binned_slice(sample_view(data), model, params, phi_d_deg, phi_tol_deg, bins)
 
 
 def _show_rgb(ax, rgb, valid, levels, title):
@@ -146,7 +167,9 @@ def plot_slice(data, model=None, params=None, *, error: str | None = None,
     """
     meas, valid, fit = slice_data(data, model, params, phi_d_deg=phi_d_deg)
     levels = _style.log_levels(meas[valid])
-    kind = "" if is_table(data) else f" (samples binned, |φd−{phi_d_deg:g}°|<10°)"
+    kind = ("" if is_table(data) else " (evaluated, φh = 0°)"
+            if callable(getattr(data, "eval", None))
+            else f" (samples binned, |φd−{phi_d_deg:g}°|<10°)")
     panels = 1 if fit is None else 3
     fig = _style.new_figure(*figure_size(fit is not None), fig)
     axes = np.atleast_1d(fig.subplots(1, panels))

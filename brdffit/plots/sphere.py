@@ -95,7 +95,8 @@ def plot_spheres(data, model=None, params=None, *, size: int = 256, light_dir=DE
     """The lit-sphere figure: measured (table lookup / nearest sample) beside the fit, if any;
     drawn into ``fig`` (a figure or sub-figure) when given, else a new figure."""
     meas = render_sphere(measured_lookup(data), size, light_dir)
-    how = "trilinear table lookup" if is_table(data) else "nearest sample"
+    how = ("trilinear table lookup" if is_table(data)
+           else "evaluated" if callable(getattr(data, "eval", None)) else "nearest sample")
     images = [(f"measured ({how})", meas)]
     if model is not None:
         fitted = render_sphere(lambda wi, wo: evaluate_model(model, params, wi, wo), size,

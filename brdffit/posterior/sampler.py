@@ -232,7 +232,7 @@ def sample_posterior(
     as :func:`brdffit.fit` does.
 
     Args:
-        table: a path (``str`` or ``PathLike``: ``.binary``, ``.csv``, ``.npz``, read by
+        table: a path (``str`` or ``PathLike``: any format of ``brdffit.io.READERS``, read by
             :func:`brdffit.io.read_path`), or a ``MERLTable`` / ``SampleSet`` (anything with
             ``.to_samples()``).
         result_or_model: a :class:`~brdffit.fitting.FitResult` (its optimum, free/fixed split and
