@@ -1,11 +1,12 @@
 """brdffit: differentiable BRDF fitting for measured reflectance data.
 
-Layers (imports only go downward, checked by ``tests/test_layers.py``): :mod:`data_formats`
-(file formats, NumPy only) → :mod:`brdffit.terms` (the physics pieces, pure ``jnp``: NDFs,
-masking, Fresnel, diffuse, the microfacet lobe, energy terms, the APS generator) →
-:mod:`brdffit.models` (registered models and their registry) → :mod:`brdffit.fitting` (least
-squares), :mod:`brdffit.posterior` (emcee), :mod:`brdffit.export`, :mod:`brdffit.plots` →
-:mod:`brdffit.cli`.
+Layers (imports only go downward and never in a circle, checked by ``tests/test_layers.py``):
+:mod:`data_formats` (file formats, NumPy only) → :mod:`brdffit.terms` (the physics pieces, pure
+``jnp``: NDFs, masking, Fresnel, diffuse, the microfacet lobe, energy terms, the APS generator)
+→ :mod:`brdffit.models` (registered models and their registry) → :mod:`brdffit.fitting` (least
+squares; its result is data) → :mod:`brdffit.export`, :mod:`brdffit.plots` →
+:mod:`brdffit.posterior` (emcee), :mod:`brdffit.batch`, :mod:`brdffit.api` (the result type
+with its ``plot``/``export`` methods) → :mod:`brdffit.cli`.
 
 The names below load their modules on first use (PEP 562), so ``import brdffit`` and
 ``brdffit --help`` do not pay for importing JAX. The library never changes ``jax.config``'s
@@ -31,7 +32,7 @@ _LAZY = {
     "available_models": ".models",
     "get_model": ".models",
     "register": ".models",
-    "FitResult": ".fitting",
+    "FitResult": ".api",
     "fit": ".api",
     "fit_report": ".fitting",
     "get_loss": ".fitting",

@@ -1,6 +1,7 @@
 """``brdffit.fit``: the notebook-facing fit, around :func:`brdffit.fitting.fit`.
 
-What it adds to the low-level fit (whose arguments it passes on unchanged):
+What it adds to the low-level fit (to which it hands the options checked once, as a
+:class:`~brdffit.fitting.Settings`):
 
 * **a path**: ``table`` may be a ``str`` or ``os.PathLike``, read by suffix through
   :func:`brdffit.io.read_path` (the dispatch the command line uses);
@@ -17,18 +18,73 @@ What it adds to the low-level fit (whose arguments it passes on unchanged):
   (:func:`brdffit.compilation_cache.ensure`: a per-user folder, opt-out), so a new process
   loads the programs an earlier one compiled;
 * **a failed fit's result**: with ``throw=True`` the :class:`~brdffit.errors.FitError` of a
-  fit that ran carries the result (``err.result``), finished as ``throw=False`` returns it.
+  fit that ran carries the result (``err.result``), finished as ``throw=False`` returns it;
+* **a result with its uses**: :class:`FitResult`, the fitting layer's record
+  (:class:`brdffit.fitting.FitResult`, the same fields and JSON) with the methods of the layers
+  above it: ``plot()`` (:func:`brdffit.plots.plot_result`), ``export(to)``
+  (:func:`brdffit.export.export_payload`) and ``render_merl()``
+  (:func:`brdffit.export.render_merl`). They live here, at the top, so that the fitting layer
+  imports nothing above it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import os
 import platform
 from pathlib import Path
 
+from . import fitting
 from .errors import FitError
 from .io import formats_text, is_path, read_path, sha256
+
+
+class FitResult(fitting.FitResult):
+    """A fit's result, as :func:`brdffit.fit` returns it: the fields, JSON and reports of
+    :class:`brdffit.fitting.FitResult`, plus the plot, the export and the MERL rendering.
+
+    ``FitResult.from_json`` reads a file back as this class; :meth:`of` turns the fitting
+    layer's record (from :func:`brdffit.fitting.fit`) into one.
+    """
+
+    @classmethod
+    def of(cls, record: fitting.FitResult) -> FitResult:
+        """``record`` (a :class:`brdffit.fitting.FitResult`) as this class, fields shared."""
+        if isinstance(record, cls):
+            return record
+        return cls(**{f.name: getattr(record, f.name) for f in dataclasses.fields(record)})
+
+    def render_merl(self, name: str | None = None, shape=None):
+        """The fitted model on a whole MERL grid: :func:`brdffit.export.render_merl`."""
+        from .export import render_merl
+
+        return render_merl(self, name=name, shape=shape)
+
+    def export(self, to: str, *, approximate: bool = False, **options):
+        """The fitted material for a renderer: ``"mitsuba-dict"`` (what ``mitsuba.load_dict``
+        takes), ``"mitsuba-xml"`` (a ``<bsdf>`` element) or ``"gltf"`` (a glTF 2.0 document).
+
+        Delegates to :func:`brdffit.export.export_payload` (the parameter mapping and the
+        ``approximate`` option are documented in :mod:`brdffit.export`).
+        """
+        from .export import export_payload
+
+        return export_payload(self, to, approximate=approximate, **options)
+
+    def plot(self, data=None, *, only=None):
+        """The diagnostic figures of this fit as one matplotlib ``Figure`` (shown inline in a
+        notebook): the image slice, the specular-peak curves, the directional albedo and the lit
+        spheres, measured beside fitted, the titles stating this fit's ``rmse_log``.
+
+        ``data`` is what was fitted; by default the file ``provenance`` names is read again
+        (a result fitted to data in memory needs them). ``only`` picks views by name
+        (``"slice"``, ``"peaks"``, ``"albedo"``, ``"spheres"``). Delegates to
+        :func:`brdffit.plots.plot_result`; ``brdffit.plots.diagnostics`` writes PNG files.
+        """
+        from .plots import plot_result
+
+        return plot_result(self, data, only=only)
 
 
 def _jsonable(value):
@@ -136,14 +192,12 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             :class:`~brdffit.fitting.FitResult` (``success=False``, ``status``, ``message``;
             provenance recorded). ``throw=False`` returns that result instead (scipy's and
             lmfit's convention); a fit that cannot start (no usable cells) raises either way.
-        **kwargs: the options of :func:`brdffit.fitting.fit` (``loss``, ``solver``, ``init``,
-            ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,
-            ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
-            ``covariance``, ``weighting``; :class:`brdffit.fitting.Settings` describes each).
+        **kwargs: the options, by name: the fields of :class:`~brdffit.config.FitOptions`
+            but ``model`` (:class:`brdffit.fitting.Settings` describes each).
     """
     import jax
 
-    from . import compilation_cache, fitting
+    from . import compilation_cache
     from .grey import is_monochrome, tie_options
     from .models.registry import get_model
     from .progress import resolve
@@ -157,7 +211,8 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
     callback, bar = resolve(progress)
     try:
         with jax.enable_x64(True):
-            result = fitting.fit(data, model, progress=callback, throw=throw, **solve_options)
+            settings = fitting.Settings.of(solve_options)  # the defaults of float64
+            result = fitting.fit(data, model, settings, progress=callback, throw=throw)
     except FitError as err:
         if err.result is not None:  # a fit that ran: its result as throw=False returns it
             err.result = _finished(err.result, data, path, model, options, tied)
@@ -169,9 +224,8 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
 
 
 def _finished(result, data, path, model, options, tied):
-    """``result`` with its provenance, and in the data's channels (:func:`brdffit.grey.untie`)."""
-    import dataclasses
-
+    """``result`` with its provenance, and in the data's channels (:func:`brdffit.grey.untie`),
+    as a :class:`FitResult`."""
     from .grey import untie
     from .models.registry import get_model
 
@@ -179,4 +233,4 @@ def _finished(result, data, path, model, options, tied):
     if tied:
         result = untie(result, get_model(model), tied)
         record.update(channels=1, tied=tied)
-    return dataclasses.replace(result, provenance=record)
+    return FitResult.of(dataclasses.replace(result, provenance=record))

@@ -1,4 +1,4 @@
-"""TOML presets → fit options: the one place where option *names* meet the library.
+"""The fit options (:class:`FitOptions`, one field each) and TOML presets that load into them.
 
 A preset (``configs/<name>.toml``) names some of the options of :func:`brdffit.fit`; what it does
 not name keeps the default that lives in code. Layers merge left to right (preset, then
@@ -51,41 +51,57 @@ from pathlib import Path
 
 import numpy as np
 
-from data_formats._files import NotRegularFileError, open_regular
+from data_formats.files import NotRegularFileError, open_regular
 
-from .errors import ConfigError, canonical_name
+from .errors import ConfigError, UnknownNameError, canonical_name
 
 #: The most samples a subsample may ask for (the readers' limit, ``MAX_SAMPLES`` = 2^24).
 MAX_SUBSAMPLE = 2**24
-#: Ranges of the numeric options of :func:`brdffit.fit`: ``key -> (integer?, low, high,
-#: low included?, what to say)``. :func:`check_fit_options` is the one place that enforces them.
-FIT_OPTION_RANGES = {
-    "cutoff": (False, 0.0, 90.0, False, "degrees in (0, 90]"),
-    "seed": (True, 0, 2**32 - 1, True, "an integer in [0, 2^32 - 1]"),
-    "multistart": (True, 0, 1000, True, "an integer in [0, 1000]"),
-    "max_steps": (True, 1, 100_000, True, "an integer in [1, 100000]"),
-    "rtol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
-    "atol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
-    "ftol": (False, 0.0, 1.0, False, "a number in (0, 1]"),
-}
-_SCALARS = {  # key -> (types, check, what the check wants); numeric ranges: check_fit_options
-    "model": (str, None, "a model name"),
-    "loss": (str, None, "a loss name"),
-    "cutoff": ((int, float), None, FIT_OPTION_RANGES["cutoff"][4]),
-    "subsample": ((int, float), None, "a sample count or a fraction in (0, 1]"),
-    "seed": (int, None, "a non-negative integer"),
-    "multistart": (int, None, "a non-negative integer"),
-    "covariance": (str, lambda v: v in ("sandwich", "gn"), '"sandwich" or "gn"'),
-    "weighting": (str, lambda v: v in ("angles", "samples"), '"angles" or "samples"'),
-}
-_SOLVER = {
-    "name": (str, None, "a solver name"),
-    "rtol": ((int, float), None, "a positive number"),
-    "atol": ((int, float), None, "a positive number"),
-    "max_steps": (int, None, "a positive integer"),
-    "ftol": ((int, float), None, "a number in (0, 1)"),
-    "precision": (str, lambda v: v in ("float64", "float32"), '"float64" or "float32"'),
-}
+
+
+@dataclasses.dataclass(frozen=True)
+class Option:
+    """What :class:`FitOptions` knows about one option (its field's ``metadata["option"]``).
+
+    Attributes:
+        default: the code's default (``None``: decided at fit time from the data or the
+            precision, or not used); :data:`brdffit.fitting.FIT_DEFAULTS` is these.
+        want: what a value must be, in error messages ("degrees in (0, 90]").
+        kind: ``int``, ``float`` or ``str`` for a preset's type check and the flag's parser;
+            ``None`` for the tables and ``subsample`` (a count or a fraction).
+        low, high, low_in: the range of a number (``high`` included, ``low`` when ``low_in``).
+        choices: the valid names of a named option (any case on input).
+        table: where a preset sets it: ``""`` at the top level, ``"solver"`` in ``[solver]``
+            (``key`` names it there), ``None`` not at all.
+        flag, metavar, help: the ``brdffit fit`` flag (``None``: none).
+    """
+
+    default: object = None
+    want: str = ""
+    kind: type | None = None
+    low: float | None = None
+    high: float | None = None
+    low_in: bool = True
+    choices: tuple = ()
+    table: str | None = ""
+    key: str | None = None
+    flag: str | None = None
+    metavar: str | None = None
+    help: str = ""
+
+
+def _option(**spec):
+    """A :class:`FitOptions` field: unset (``None``) unless given, described by ``spec``."""
+    return dataclasses.field(default=None, metadata={"option": Option(**spec)})
+
+
+def _table_option(flag, help, metavar="NAME=VALUE"):
+    return dataclasses.field(default_factory=dict, metadata={"option": Option(
+        want="a table", table="", flag=flag, metavar=metavar, help=help)})
+
+
+_UNIT = dict(kind=float, low=0.0, high=1.0, low_in=False, want="a number in (0, 1]")
+_TOL = "step tolerance of the stall test (default 1e-14 in float64, 1e-6 in float32)"
 
 #: Ranges of the posterior-sampling options (``brdffit fit --mcmc``), checked the same way.
 #: The chain holds ``walkers * steps * parameters`` doubles: 10^4 x 10^5 x 10 would be 80 GB,
@@ -125,7 +141,7 @@ def _subsample_error(value) -> str | None:
         return None
     if not _is_int(value) and math.isfinite(value) and 0 < value <= 1:
         return None
-    return f"a sample count in [1, {MAX_SUBSAMPLE}] or a fraction in (0, 1]"
+    return OPTIONS["subsample"].want
 
 
 def check_fit_options(options: Mapping, label=None, ranges=None) -> Mapping:
@@ -156,14 +172,17 @@ def check_fit_options(options: Mapping, label=None, ranges=None) -> Mapping:
             kind = "" if _is_real(value) else f"{type(value).__name__} "
             raise ConfigError(f"{label(key)} must be {want}, got {kind}{value!r}")
     return options
-_TABLES = ("init", "fixed", "bounds", "solver")
-_FREE_TEXT = ("description",)
-VALID_KEYS = tuple(_SCALARS) + _TABLES + _FREE_TEXT
 
 
 @dataclasses.dataclass(frozen=True)
 class FitOptions:
     """Options for :func:`brdffit.fit`; ``None`` (or an empty mapping) means "the code's default".
+
+    The one owner of the options: each field's :class:`Option` (``metadata["option"]``) holds
+    its default, range, choices, preset key and flag, from which come :data:`OPTIONS`,
+    :data:`FIT_OPTION_RANGES`, the preset schema (:func:`parse_config`), the code's defaults
+    (:data:`CODE_DEFAULTS`), the ``brdffit fit`` flags and the words of the advice. A new
+    option is a new field.
 
     ``solver`` holds the solver name; ``rtol``, ``atol``, ``ftol``, ``max_steps`` its
     tolerances, ``precision`` the model evaluation's dtype; ``covariance`` how standard errors
@@ -174,24 +193,56 @@ class FitOptions:
     parameter names to ``(lower, upper)``. ``sources`` lists the presets merged in.
     """
 
-    model: str | None = None
-    loss: str | None = None
-    solver: str | None = None
-    cutoff: float | None = None
-    subsample: int | None = None
-    seed: int | None = None
-    multistart: int | None = None
-    rtol: float | None = None
-    atol: float | None = None
-    max_steps: int | None = None
-    ftol: float | None = None
-    precision: str | None = None
-    covariance: str | None = None
-    weighting: str | None = None
-    scan: bool | None = None
-    init: Mapping = dataclasses.field(default_factory=dict)
-    fixed: Mapping = dataclasses.field(default_factory=dict)
-    bounds: Mapping = dataclasses.field(default_factory=dict)
+    model: str | None = _option(kind=str, want="a model name", default=None)
+    loss: str | None = _option(
+        kind=str, want="a loss name", default="log", flag="--loss",
+        help="residual weighting: linear, cosine, log, relative (+huber)")
+    solver: str | None = _option(
+        kind=str, want="a solver name", default="lm", table="solver", key="name",
+        flag="--solver", help="lm (Levenberg-Marquardt, default), gauss-newton or dogleg")
+    init: Mapping = _table_option("--init", "start a parameter at a value; repeatable")
+    fixed: Mapping = _table_option(
+        "--fix", "hold a parameter at a value (f0=0.04 or f0=0.9,0.6,0.3); repeatable")
+    bounds: Mapping = _table_option(
+        "--bound", "narrow a parameter's bounds (alpha=0.01,0.5); repeatable", "NAME=LO,HI")
+    cutoff: float | None = _option(
+        kind=float, low=0.0, high=90.0, low_in=False, want="degrees in (0, 90]",
+        flag="--cutoff", metavar="DEG", help="drop samples with θi or θo above DEG degrees")
+    subsample: int | None = _option(
+        want=f"a sample count in [1, {MAX_SUBSAMPLE}] or a fraction in (0, 1]",
+        flag="--subsample", metavar="N",
+        help="fit on N randomly chosen valid samples (or a fraction like 0.1)")
+    seed: int | None = _option(
+        kind=int, low=0, high=2**32 - 1, want="an integer in [0, 2^32 - 1]", default=0,
+        flag="--seed", help="seed for subsampling and multi-start")
+    multistart: int | None = _option(
+        kind=int, low=0, high=1000, want="an integer in [0, 1000]", default=0,
+        flag="--multistart", metavar="K", help="K extra random starts, best kept")
+    max_steps: int | None = _option(
+        kind=int, low=1, high=100_000, want="an integer in [1, 100000]", default=200,
+        table="solver", flag="--max-steps", metavar="N",
+        help="solver steps per start before giving up (default 200)")
+    rtol: float | None = _option(**_UNIT, table="solver", flag="--rtol", metavar="X",
+                                 help=f"relative {_TOL}")
+    atol: float | None = _option(**_UNIT, table="solver", flag="--atol", metavar="X",
+                                 help=f"absolute {_TOL}")
+    ftol: float | None = _option(
+        **_UNIT, table="solver", flag="--ftol", metavar="X",
+        help="the optimality test: converged when the best bounded Gauss-Newton step would "
+        "lower the cost by less than X times the cost (default 1e-9 in float64, 1e-6 in "
+        "float32)")
+    scan: bool | None = _option(default=True, table=None)
+    precision: str | None = _option(
+        kind=str, choices=("float64", "float32"), want='"float64" or "float32"',
+        table="solver", flag="--precision", help="model evaluation dtype (default float64)")
+    covariance: str | None = _option(
+        kind=str, choices=("sandwich", "gn"), want='"sandwich" or "gn"', default="sandwich",
+        flag="--covariance", help="standard errors: sandwich (robust, default) or gn (classical)")
+    weighting: str | None = _option(
+        kind=str, choices=("angles", "samples"), want='"angles" or "samples"',
+        default="angles", flag="--weighting",
+        help="how samples count: by the share of the angles each stands for (default; undoes "
+        "the MERL θh warp) or once each")
     description: str = ""
     sources: tuple[str, ...] = ()
 
@@ -204,7 +255,7 @@ class FitOptions:
         out = {}
         for f in dataclasses.fields(self):
             mine, theirs = getattr(self, f.name), getattr(later, f.name)
-            if f.name in ("init", "fixed", "bounds"):
+            if f.name in _TABLES:
                 out[f.name] = {**mine, **theirs}
             elif f.name == "sources":
                 out[f.name] = mine + theirs
@@ -216,13 +267,14 @@ class FitOptions:
 
     def fit_kwargs(self) -> dict:
         """Keyword arguments for :func:`brdffit.fit`: only what was set (the model excluded)."""
-        keys = ("loss", "solver", "cutoff", "subsample", "seed", "multistart",
-                "rtol", "atol", "ftol", "max_steps", "precision", "covariance", "weighting",
-                "scan")
-        kwargs = {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
-        for k in ("init", "fixed", "bounds"):
-            if getattr(self, k):
-                kwargs[k] = dict(getattr(self, k))
+        kwargs = {}
+        for key in FIT_KEYS:
+            value = getattr(self, key)
+            if key in _TABLES:
+                if value:
+                    kwargs[key] = dict(value)
+            elif value is not None:
+                kwargs[key] = value
         return kwargs
 
     def check_params(self, model) -> "FitOptions":
@@ -247,6 +299,38 @@ class FitOptions:
         return self
 
 
+#: Every option, name -> :class:`Option`, in the order of :class:`FitOptions`.
+OPTIONS = {f.name: f.metadata["option"] for f in dataclasses.fields(FitOptions)
+           if "option" in f.metadata}
+#: The options of :func:`brdffit.fit` (all but the model).
+FIT_KEYS = tuple(key for key in OPTIONS if key != "model")
+#: Each option of :func:`brdffit.fit` with the code's default (``None``: see :class:`Option`).
+CODE_DEFAULTS = {key: OPTIONS[key].default for key in FIT_KEYS}
+#: Ranges of the numeric options: ``key -> (integer?, low, high, low included?, what to say)``,
+#: from :data:`OPTIONS`; :func:`check_fit_options` is the one place that enforces them.
+FIT_OPTION_RANGES = {key: (o.kind is int, o.low, o.high, o.low_in, o.want)
+                     for key, o in OPTIONS.items() if o.high is not None}
+_TABLES = ("init", "fixed", "bounds")
+#: A preset's keys: top-level ones, and those of its ``[solver]`` table (-> the option).
+_PRESET_KEYS = {key: key for key, o in OPTIONS.items() if o.table == "" and key not in _TABLES}
+_SOLVER_KEYS = {o.key or key: key for key, o in OPTIONS.items() if o.table == "solver"}
+VALID_KEYS = tuple(_PRESET_KEYS) + _TABLES + ("solver", "description")
+
+
+def canonical_choices(options: dict) -> dict:
+    """``options`` with each named option (``covariance``, ``precision``, ``weighting``) spelled
+    as its choice (names ignore case: ``"GN"`` is ``"gn"``); raises
+    :class:`~brdffit.errors.UnknownNameError` for a name that is no choice."""
+    for key, option in OPTIONS.items():
+        value = options.get(key)
+        if option.choices and value is not None:
+            name = canonical_name(value, option.choices)
+            if name is None:
+                raise UnknownNameError(key, str(value), list(option.choices))
+            options[key] = name
+    return options
+
+
 def _with_context(where, fn, *args):
     try:
         return fn(*args)
@@ -264,15 +348,17 @@ def _unknown_key(where: str, key: str, valid) -> ConfigError:
     )
 
 
-def _check_scalar(where: str, key: str, value, spec):
-    types, check, want = spec
+def _check_scalar(where: str, key: str, value, option: Option):
+    """A preset's value for ``option``: of its type and among its choices (ranges:
+    :func:`check_fit_options`)."""
+    types = {str: str, int: int, float: (int, float), None: (int, float)}[option.kind]
     if isinstance(value, bool) or not isinstance(value, types):
         raise ConfigError(
-            f"{where}{key!r} must be {want}, got {type(value).__name__} {value!r}"
+            f"{where}{key!r} must be {option.want}, got {type(value).__name__} {value!r}"
         )
-    if check is not None and not check(value):
-        raise ConfigError(f"{where}{key!r} must be {want}, got {value!r}")
-    return float(value) if key in ("cutoff", "rtol", "atol") else value
+    if option.choices and value not in option.choices:
+        raise ConfigError(f"{where}{key!r} must be {option.want}, got {value!r}")
+    return float(value) if option.kind is float else value
 
 
 def _param_value(where: str, key: str, value):
@@ -312,18 +398,18 @@ def parse_config(data: Mapping, source: str = "<config>") -> FitOptions:
     where = f"{source}: "
     opts: dict = {"sources": (source,)}
     for key, value in data.items():
-        if key in _SCALARS:
-            opts[key] = _check_scalar(where, key, value, _SCALARS[key])
+        if key in _PRESET_KEYS:
+            opts[key] = _check_scalar(where, key, value, OPTIONS[key])
         elif key == "description":
-            opts[key] = _check_scalar(where, key, value, (str, None, "a string"))
+            opts[key] = _check_scalar(where, key, value, Option(kind=str, want="a string"))
         elif key == "solver":
             for sub, v in _table(where, key, value).items():
-                if sub not in _SOLVER:
-                    raise _unknown_key(f"{where}[solver] ", sub, _SOLVER)
-                opts["solver" if sub == "name" else sub] = _check_scalar(
-                    f"{where}[solver] ", sub, v, _SOLVER[sub]
+                if sub not in _SOLVER_KEYS:
+                    raise _unknown_key(f"{where}[solver] ", sub, _SOLVER_KEYS)
+                opts[_SOLVER_KEYS[sub]] = _check_scalar(
+                    f"{where}[solver] ", sub, v, OPTIONS[_SOLVER_KEYS[sub]]
                 )
-        elif key in ("init", "fixed", "bounds"):
+        elif key in _TABLES:
             conv = _bounds_value if key == "bounds" else _param_value
             opts[key] = {k: conv(f"{where}[{key}] ", k, v) for k, v in _table(where, key, value).items()}
         else:
@@ -332,7 +418,8 @@ def parse_config(data: Mapping, source: str = "<config>") -> FitOptions:
     if both:
         raise ConfigError(f"{where}{', '.join(both)} is both in [init] and in [fixed]; a "
                           f"parameter is either fitted from a start value or held fixed: keep one")
-    check_fit_options(opts, lambda key: f"{where}{'[solver] ' if key in _SOLVER else ''}{key!r}")
+    solver = {name for name, o in OPTIONS.items() if o.table == "solver"}
+    check_fit_options(opts, lambda key: f"{where}{'[solver] ' if key in solver else ''}{key!r}")
     return FitOptions(**opts)
 
 

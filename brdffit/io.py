@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Mapping
 from pathlib import Path
 
 from .errors import BrdffitError
@@ -34,8 +35,23 @@ READERS = {
     ".npz": ("sample list", "data_formats.samplelist", "read_samples"),
     ".bsdf": ("RGL material", "data_formats.rgl", "read_rgl"),
 }
-#: Suffix → what it holds (``".binary"`` → ``"MERL table"``).
-INPUT_SUFFIXES = {suffix: kind for suffix, (kind, _, _) in READERS.items()}
+
+
+class _Kinds(Mapping):
+    """Suffix → what it holds, read from :data:`READERS` at each use (so it never disagrees)."""
+
+    def __getitem__(self, suffix: str) -> str:
+        return READERS[suffix][0]
+
+    def __iter__(self):
+        return iter(READERS)
+
+    def __len__(self) -> int:
+        return len(READERS)
+
+
+#: Suffix → what it holds (``".binary"`` → ``"MERL table"``): a live view of :data:`READERS`.
+INPUT_SUFFIXES = _Kinds()
 #: The kinds whose reader gives a measurement that evaluates itself at any direction pair
 #: (``eval(wi, wo)``) and can be anisotropic; the figures add the polar view of the lobe
 #: (:func:`brdffit.plots.figure_names`).

@@ -99,7 +99,7 @@ def test_html_view_and_dataframe_have_one_row_per_scalar(result):
 
 
 def test_value_with_error_keeps_the_digits_the_error_supports():
-    from brdffit.fitting.result import value_with_error
+    from brdffit.fitting import value_with_error
 
     assert value_with_error(0.0801234, 0.000113) == "0.08012 ± 0.00011"
     assert value_with_error(12345.6, 230.0) == "12350 ± 230"

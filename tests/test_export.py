@@ -17,7 +17,7 @@ import pytest
 
 import brdffit
 from brdffit.cli import main
-from brdffit.export import NATIVE_FOR, ApproximationWarning, NoExactCounterpart, export
+from brdffit.export import TARGETS, ApproximationWarning, NoExactCounterpart, export
 from brdffit.export.approximate import approximate
 from brdffit.models.evaluate import evaluate_model
 from data_formats.merl import read_merl, synthesize, write_merl
@@ -115,7 +115,7 @@ def test_gltf_document_is_valid_gltf_2_json():
 def test_no_exact_counterpart_names_the_native_model(model, target, native):
     with pytest.raises(NoExactCounterpart, match=rf"{model}.*no exact counterpart.*{native}.*approximate"):
         export((model, {}), target)
-    assert NATIVE_FOR[target] == native
+    assert TARGETS[target].native == native
 
 
 def test_unknown_target_lists_the_valid_ones():

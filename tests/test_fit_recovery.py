@@ -51,30 +51,36 @@ CASES = {
 #: grazing term; ``anisotropic`` needs φh ≠ 0, which a MERL grid (φh = 0) never has.
 DISNEY_FIXED = ("specular_tint", "sheen_tint", "anisotropic")
 
-_TABLES = {}
-
 
 def _evaluator(name):
     model = brdffit.get_model(name)
     return model, jax.jit(lambda p, wi, wo: model.fn(p, wi, wo))
 
 
-def merl_table(tmp_path_factory, name, label, truth, noise=0.0):
-    """The table of ``truth`` written to disk and read back (cached per case)."""
-    key = (name, label, noise)
-    if key not in _TABLES:
-        model, f = _evaluator(name)
-        p = model.unflatten(model.flatten(truth))
-        rng = np.random.default_rng(7)
+@pytest.fixture(scope="module")
+def merl_table(tmp_path_factory):
+    """``merl_table(name, label, truth, noise=0.0)``: the table of ``truth``, written to disk
+    once per case and read back for each test. Only the files outlive a test: a full table is
+    35 MB in memory, and this file's thirteen tables held at once raised a worker's peak."""
+    paths = {}
 
-        def fn(wi, wo):
-            rgb = np.concatenate([np.asarray(f(p, a, b))[None] for a, b in zip(wi, wo)])
-            return rgb * (1.0 + noise * rng.standard_normal(rgb.shape)) if noise else rgb
+    def table(name, label, truth, noise=0.0):
+        key = (name, label, noise)
+        if key not in paths:
+            model, f = _evaluator(name)
+            p = model.unflatten(model.flatten(truth))
+            rng = np.random.default_rng(7)
 
-        path = tmp_path_factory.mktemp("merl") / f"{name}-{label}.binary"
-        write_merl(path, synthesize(fn, name=f"{name}-{label}"))
-        _TABLES[key] = read_merl(path)
-    return _TABLES[key]
+            def fn(wi, wo):
+                rgb = np.concatenate([np.asarray(f(p, a, b))[None] for a, b in zip(wi, wo)])
+                return rgb * (1.0 + noise * rng.standard_normal(rgb.shape)) if noise else rgb
+
+            path = tmp_path_factory.mktemp("merl") / f"{name}-{label}.binary"
+            write_merl(path, synthesize(fn, name=f"{name}-{label}"))
+            paths[key] = path
+        return read_merl(paths[key])
+
+    return table
 
 
 def fixed_for(name, truth):
@@ -100,10 +106,10 @@ def rel_errors(model, result, truth):
     "name,label,truth", [(n, lab, t) for n, cases in CASES.items() for lab, t in cases],
     ids=[f"{n}-{lab}" for n, cases in CASES.items() for lab, _ in cases],
 )
-def test_noise_free_recovery_from_default_init(tmp_path_factory, name, label, truth):
+def test_noise_free_recovery_from_default_init(merl_table, name, label, truth):
     if name not in brdffit.available_models():
         pytest.fail(f"model {name!r} is not registered")
-    table = merl_table(tmp_path_factory, name, label, truth)
+    table = merl_table(name, label, truth)
     model = brdffit.get_model(name)
     res = brdffit.fit(table, name, subsample=SUB, fixed=fixed_for(name, truth))
     errs = rel_errors(model, res, truth)
@@ -116,11 +122,11 @@ def test_noise_free_recovery_from_default_init(tmp_path_factory, name, label, tr
     assert all(on.get(k) == side for k, side in res.at_bound.items()), (res.at_bound, on)
 
 
-def test_noisy_estimates_within_three_standard_errors(tmp_path_factory):
+def test_noisy_estimates_within_three_standard_errors(merl_table):
     """2% multiplicative noise: |estimate - truth| ≤ 3 reported standard errors (7 scalars)."""
     name, label = "ggx", "blue-plastic"
     truth = {"diffuse": [0.1, 0.2, 0.3], "f0": [0.05, 0.04, 0.03], "alpha": 0.1}
-    table = merl_table(tmp_path_factory, name, label, truth, noise=0.02)
+    table = merl_table(name, label, truth, noise=0.02)
     model = brdffit.get_model(name)
     res = brdffit.fit(table, name, subsample=Subsample(5000))
     se = np.sqrt(np.diag(res.cov))
@@ -132,9 +138,9 @@ def test_noisy_estimates_within_three_standard_errors(tmp_path_factory):
 
 
 @pytest.mark.parametrize("start", [0, 1, 2])
-def test_several_starting_points_reach_the_same_optimum(tmp_path_factory, start):
+def test_several_starting_points_reach_the_same_optimum(merl_table, start):
     name, label, truth = "ggx", "polished-metal", CASES["ggx"][1][1]
-    table = merl_table(tmp_path_factory, name, label, truth)
+    table = merl_table(name, label, truth)
     init = [
         None,
         {"diffuse": 0.3, "f0": 0.1, "alpha": 0.3},
@@ -145,17 +151,17 @@ def test_several_starting_points_reach_the_same_optimum(tmp_path_factory, start)
     assert res.success and max(errs.values()) <= 1e-3, (init, res.summary())
 
 
-def test_multistart_keeps_the_best(tmp_path_factory):
+def test_multistart_keeps_the_best(merl_table):
     name, label, truth = "ggx", "rough-bright-plastic", CASES["ggx"][0][1]
-    table = merl_table(tmp_path_factory, name, label, truth)
+    table = merl_table(name, label, truth)
     res = brdffit.fit(table, name, subsample=SUB, multistart=3, seed=5)
     assert len(res.starts) == 4 and res.cost == pytest.approx(min(res.starts), rel=1e-6, abs=1e-20)
     assert max(rel_errors(brdffit.get_model(name), res, truth).values()) <= 1e-3
 
 
-def test_fixed_parameters_are_honoured_and_others_still_recovered(tmp_path_factory):
+def test_fixed_parameters_are_honoured_and_others_still_recovered(merl_table):
     name, label, truth = "ggx", "dark-plastic", CASES["ggx"][2][1]
-    table = merl_table(tmp_path_factory, name, label, truth)
+    table = merl_table(name, label, truth)
     res = brdffit.fit(table, name, subsample=SUB, fixed={"alpha": 0.1, "f0[1]": 0.05})
     assert res.params["alpha"] == 0.1 and res.params["f0"][1] == 0.05
     assert res.fixed == ["f0[1]", "alpha"] and res.stderr["alpha"] == 0
@@ -165,12 +171,12 @@ def test_fixed_parameters_are_honoured_and_others_still_recovered(tmp_path_facto
     assert off.params["alpha"] == 0.11 and off.cost > 1e-4
 
 
-def test_at_bound_reporting(tmp_path_factory):
+def test_at_bound_reporting(merl_table):
     """A metal with no diffuse term: the diffuse albedo ends at (or within 2e-6 of) its lower
     bound, and a bound that excludes the optimum pins every channel there, reported as such."""
     name, label = "ggx", "bare-metal"
     truth = {"diffuse": [0.0, 0.0, 0.0], "f0": [0.9, 0.7, 0.5], "alpha": 0.05}
-    table = merl_table(tmp_path_factory, name, label, truth)
+    table = merl_table(name, label, truth)
     res = brdffit.fit(table, name, subsample=SUB)
     assert res.success
     # The table's values carry ~1e-7 relative rounding: the optimum of a channel may sit just

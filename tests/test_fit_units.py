@@ -530,7 +530,7 @@ def test_tables_of_one_layout_share_their_selected_directions():
     loss = get_loss("log")
     first, second = select(a.to_samples(), loss), select(b.to_samples(), loss)
     assert second.data.wi is first.data.wi and second.data.wo is first.data.wo
-    fit_data._LAST_DIRECTIONS.clear()
+    fit_data._memo_directions.cache_clear()
     fresh = select(b.to_samples(), loss)
     assert fresh.data.wi is not first.data.wi
     for got, want in zip(jax.tree.leaves(second.data), jax.tree.leaves(fresh.data)):

@@ -208,12 +208,12 @@ def results(draw):
 @given(text=results())
 def test_result_json_reader(tmp_path_factory, text):
     from brdffit.cli._common import UsageError
-    from brdffit.cli.plotting import _read_result
+    from brdffit.cli.plotting import read_result
 
     path = tmp_path_factory.mktemp("json") / "r.json"
     path.write_text(text)
     try:
-        _read_result(path)
+        read_result(path)
     except UsageError as exc:
         assert "\n" not in str(exc)
 

@@ -26,7 +26,7 @@ import pytest
 import brdffit
 from brdffit import FitResult
 from brdffit.cli import main
-from brdffit.export import NotExportable, export, mitsuba_xml
+from brdffit.export import TARGETS, NotExportable, export, mitsuba_xml
 from brdffit.fitting import ResultChoiceError, ResultFormatError
 
 import gltf_validator
@@ -159,10 +159,10 @@ def test_xml_attributes_are_escaped_and_unrepresentable_ones_refused():
         mitsuba_xml(model, params, bsdf_id="a\x01b")
 
 
-@pytest.mark.parametrize("target", ["mitsuba-xml", "mitsuba-dict", "gltf"])
+@pytest.mark.parametrize("target", sorted(TARGETS))
 def test_a_parameter_that_is_not_finite_is_refused_not_written(target):
     """Before: ``NaN`` in the glTF text (not JSON) and ``value="nan"`` in the XML."""
-    model = "gltf-pbr" if target == "gltf" else "mitsuba-principled"
+    model = TARGETS[target].native
     for bad in (math.nan, math.inf):
         with pytest.raises(NotExportable, match="roughness.*not a finite number"):
             export((model, dict(NATIVE[model], roughness=bad)), target)

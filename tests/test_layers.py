@@ -11,6 +11,12 @@ The layers, lowest first (``docs/extending.md``):
    which may import one another;
 5. ``brdffit.cli``, which nothing else imports.
 
+Inside the application layer, the fitting layer is the lowest of the packages built on one
+another: ``brdffit.fitting`` imports none of export, plots, posterior, batch and the API
+(:data:`BUILT_ON`), so that a result is data and its renderings live above it. No module
+imports itself through others: the import graph of ``brdffit`` and ``data_formats`` has no
+circle (:func:`circles`).
+
 ``brdffit`` itself, ``brdffit.errors`` and ``brdffit._lazy`` may be imported from anywhere in
 ``brdffit``; a name taken from ``brdffit`` that the package exports lazily counts as an import of
 the module defining it. Every ``import`` statement counts, also those inside functions. Modules
@@ -39,6 +45,13 @@ ALLOWED = {
     "cli": set(LAYERS),
 }
 BASE = {"brdffit", "brdffit.errors", "brdffit._lazy"}
+#: Application package -> the application packages built on it, which it must not import.
+BUILT_ON = {
+    "brdffit.fitting": ("brdffit.export", "brdffit.plots", "brdffit.posterior", "brdffit.batch",
+                        "brdffit.api"),
+    "brdffit.export": ("brdffit.posterior", "brdffit.batch", "brdffit.api"),
+    "brdffit.plots": ("brdffit.posterior", "brdffit.batch", "brdffit.api"),
+}
 #: Third-party packages ``data_formats`` must not import (it is NumPy only).
 NOT_IN_DATA_FORMATS = {"brdffit", "jax", "jaxlib", "equinox", "optimistix"}
 
@@ -96,6 +109,10 @@ def layer(module: str) -> str | None:
             "_program": "cli"}.get(parts[1], "application")
 
 
+def within(module: str, package: str) -> bool:
+    return module == package or module.startswith(package + ".")
+
+
 def violations(module: str, source: str, is_package: bool, lazy: dict[str, str]) -> list[str]:
     """What is wrong with the imports of ``module``, one line each (empty when nothing is)."""
     own, out = layer(module), []
@@ -108,6 +125,13 @@ def violations(module: str, source: str, is_package: bool, lazy: dict[str, str])
             continue
         theirs = layer(target)
         if own is None or theirs is None:
+            continue
+        above = next((up for pkg, ups in BUILT_ON.items() if within(module, pkg)
+                      for up in ups if within(target, up)), None)
+        if above:
+            out.append(f"{where}: {above} is built on {module.split('.')[0]}."
+                       f"{module.split('.')[1]}; hand the work to the layer above (a function "
+                       "there taking what this layer returns)")
             continue
         if theirs not in ALLOWED[own]:
             out.append(f"{where}: the {own} layer may import only {sorted(ALLOWED[own])}; move "
@@ -130,6 +154,55 @@ def test_imports_run_downward():
     lazy = lazy_exports()
     found = [v for name, src, pkg in sources() for v in violations(name, src, pkg, lazy)]
     assert not found, "imports that run upward:\n" + "\n".join(found)
+
+
+def graph() -> dict[str, set[str]]:
+    """Module -> the modules of ``brdffit`` and ``data_formats`` it imports (any import
+    statement, also inside functions; ``brdffit``, ``brdffit.errors``, ``brdffit._lazy`` left
+    out, as everything may import them)."""
+    lazy, out = lazy_exports(), {}
+    for name, src, pkg in sources():
+        out[name] = {t for _, t in imports(name, src, pkg, lazy)} - BASE - {name}
+    return {name: targets & out.keys() for name, targets in out.items()}
+
+
+def circles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """The import circles: strongly connected sets of more than one module (Tarjan)."""
+    index, low, stack, on, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(edges.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            part = []
+            while not part or part[-1] != v:
+                part.append(stack.pop())
+                on.discard(part[-1])
+            if len(part) > 1:
+                found.append(sorted(part))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_import_circle():
+    found = circles(graph())
+    assert not found, "import circles (break each by moving what both need down):\n" + "\n".join(
+        " <-> ".join(c) for c in found)
+
+
+def test_a_circle_is_found():
+    assert circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert circles({"a": {"b"}, "b": set()}) == []
 
 
 def test_every_terms_piece_has_a_rank():
@@ -162,6 +235,12 @@ def test_the_scanner_resolves_real_imports():
      "terms.fresnel (rank 1) is not below terms.ndf (rank 1)"),
     ("data_formats.merl", "import jax.numpy as jnp", "data_formats is NumPy only"),
     ("data_formats.samples", "from brdffit.terms._math import dot", "data_formats is NumPy only"),
+    ("brdffit.fitting.result", "def f():\n    from ..export import export_payload",
+     "brdffit.export is built on brdffit.fitting"),
+    ("brdffit.fitting.result", "def f():\n    from ..plots import plot_result",
+     "brdffit.plots is built on brdffit.fitting"),
+    ("brdffit.export.gltf", "from ..api import FitResult",
+     "brdffit.api is built on brdffit.export"),
 ])
 def test_an_upward_import_is_reported(module, source, message):
     found = violations(module, source, False, lazy_exports())
@@ -174,6 +253,7 @@ def test_an_upward_import_is_reported(module, source, message):
     ("brdffit.terms.ndf.gtr", "from .ggx import GGX"),
     ("brdffit.cli.fitting", "from ..api import fit\nfrom data_formats.merl import write_merl"),
     ("brdffit.export.approximate", "from ..fitting import fit"),
+    ("brdffit.api", "from . import fitting\nfrom .export import export_payload"),
 ])
 def test_a_downward_import_passes(module, source):
     assert violations(module, source, False, lazy_exports()) == []

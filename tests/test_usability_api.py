@@ -155,6 +155,7 @@ def test_fit_many_runs_twice_on_the_same_workers_and_closes_them_when_interrupte
                                            return_results=True)
         assert not failed["success"].iloc[0] and failed["worker"].iloc[0] == first["worker"].iloc[0]
         assert results[0].status == "nonlinear_max_steps_reached" and not results[0].success
+        assert type(results[0]) is brdffit.FitResult  # with plot() and export()
         other = brdffit.fit_many([samples_csv], "ggx", workers=1, keep_cluster=False)
         assert other["worker"].iloc[0] != first["worker"].iloc[0]  # a cluster of its own
         assert session_client() is client

@@ -32,9 +32,9 @@ from ..errors import BrdffitError
 
 #: Files a batch writes at the top of OUTDIR.
 TABLE_FILES = ("results.parquet", "results.csv")
-_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 _DIRECTORY = getattr(os, "O_DIRECTORY", 0)
-_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
+CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 
 
 class BatchOutputError(BrdffitError):
@@ -52,7 +52,7 @@ def check_component(name: str) -> str:
 
 
 def _kind(st) -> str:
-    from data_formats._files import describe_mode
+    from data_formats.files import describe_mode
 
     return "a symbolic link" if stat.S_ISLNK(st.st_mode) else describe_mode(st.st_mode)
 
@@ -132,7 +132,7 @@ def _check_tree(outdir: str, folders: dict) -> None:
 def _probe(root: int, outdir: str) -> None:
     name = f".brdffit-probe-{secrets.token_hex(4)}"
     try:
-        fd = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW | _CLOEXEC, 0o600,
+        fd = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | NOFOLLOW | CLOEXEC, 0o600,
                      dir_fd=root)
     except OSError as exc:
         raise BatchOutputError(f"{outdir}: cannot write into the output folder "
@@ -145,7 +145,7 @@ def _probe(root: int, outdir: str) -> None:
 def _open_dir(name, dir_fd, follow: bool = False, where=None):
     """A descriptor of folder ``name`` (relative to ``dir_fd``); ``where``: its path for
     messages."""
-    flags = os.O_RDONLY | _DIRECTORY | _CLOEXEC | (0 if follow else _NOFOLLOW)
+    flags = os.O_RDONLY | _DIRECTORY | CLOEXEC | (0 if follow else NOFOLLOW)
     where = where or name
     try:
         fd = os.open(name, flags, dir_fd=dir_fd)
@@ -189,7 +189,7 @@ class Folder:
     def read(self, name: str) -> bytes | None:
         """The bytes of regular file ``name``; None if it is missing or not a regular file."""
         try:
-            fd = os.open(check_component(name), os.O_RDONLY | _NOFOLLOW | _CLOEXEC,
+            fd = os.open(check_component(name), os.O_RDONLY | NOFOLLOW | CLOEXEC,
                          dir_fd=self.fd)
         except OSError:
             return None
@@ -206,7 +206,7 @@ class Folder:
         """Put ``data`` at ``name`` atomically: a new temporary file, then a rename."""
         tmp = self._temporary(name)
         try:
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW | _CLOEXEC,
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | NOFOLLOW | CLOEXEC,
                          0o666, dir_fd=self.fd)
             with os.fdopen(fd, "wb") as f:
                 old = _lstat(name, self.fd)

@@ -49,7 +49,7 @@ import time
 import uuid
 import warnings
 
-from data_formats._atomic import writing
+from data_formats.files import writing
 
 from ..errors import BrdffitError
 from . import inputs, jobs, outdir as outdirs, table
@@ -287,7 +287,7 @@ def _cluster_in(scratch: str, n: int, dashboard: str | None, security):
 
     settings = {**LOCAL_SCHEDULER, "temporary-directory": scratch}
     # The start makes files in ``scratch`` (lock files, the nodes' folders): it counts as a
-    # write in flight (data_formats._atomic.writing), so a signal's clean-up waits for it
+    # write in flight (data_formats.files.writing), so a signal's clean-up waits for it
     # instead of racing it (files made just after the removal stayed behind).
     with writing(), dask.config.set(settings), warnings.catch_warnings():
         # A dashboard port in use: Dask serves on another and warns; the link printed below
@@ -434,7 +434,7 @@ def run_batch(job_list, *, outdir=None, force=False, plot=False, want_results=Fa
                 files = table.write(whole, outdir)
     results = None
     if want_results:
-        from ..fitting import FitResult
+        from ..api import FitResult
 
         results = [None if outputs[i]["result"] is None else
                    FitResult.from_dict(outputs[i]["result"]) for i in sorted(outputs)]

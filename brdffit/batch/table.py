@@ -114,13 +114,13 @@ def read(outdir):
     would replace it by a table without its rows)."""
     import pandas as pd
 
-    from .outdir import _CLOEXEC, _NOFOLLOW, BatchOutputError
+    from .outdir import CLOEXEC, NOFOLLOW, BatchOutputError
 
     where = os.path.join(os.fspath(outdir), "results.parquet")
     hint = ("a batch merges its results into the table of its output folder: move the file "
             "away or choose another --outdir")
     try:
-        fd = os.open(where, os.O_RDONLY | _NOFOLLOW | _CLOEXEC)
+        fd = os.open(where, os.O_RDONLY | NOFOLLOW | CLOEXEC)
     except FileNotFoundError:
         csv = os.path.join(os.fspath(outdir), "results.csv")
         if os.path.lexists(csv):
@@ -195,7 +195,7 @@ def write(df, outdir) -> list:
     """``results.parquet`` and ``results.csv`` in ``outdir``, each written atomically."""
     from pathlib import Path
 
-    from data_formats._atomic import atomic_path
+    from data_formats.files import atomic_path
 
     paths = []
     for name, writer in (("results.parquet", lambda p: df.to_parquet(p, index=False)),

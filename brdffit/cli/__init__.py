@@ -36,7 +36,7 @@ from . import batch, catalog, demo, export, fitting, info, plotting, render, syn
 __all__ = ["main", "run", "build_parser"]
 
 COMMANDS = (fitting, batch, info, synth, plotting, catalog, demo, export, render)
-EXIT_OK, EXIT_NOT_CONVERGED, EXIT_USAGE = 0, 1, 2
+EXIT_USAGE = 2
 
 
 class _Parser(argparse.ArgumentParser):

@@ -99,7 +99,7 @@ def check_readable(path: Path) -> None:
     """Refuse, before opening, anything that is not a regular file (a FIFO blocks ``open``)."""
     import stat
 
-    from data_formats._files import describe_mode
+    from data_formats.files import describe_mode
 
     mode = path.stat().st_mode
     if not stat.S_ISREG(mode):

@@ -15,7 +15,7 @@ owns its staging folders, so that they exist only inside its ``with`` block. Con
   folder (``.brdffit-XXXXXXXX``); **leaving** it, however (return, exception), removes them and
   every temporary in them. Staged paths exist only inside the block.
 * **Writing** goes to :meth:`OutputSet.staged` paths inside the staging folders, through
-  :meth:`OutputSet.write`, a write in flight (:func:`data_formats._atomic.writing`); a failed
+  :meth:`OutputSet.write`, a write in flight (:func:`data_formats.files.writing`); a failed
   write (``ENOSPC``, ``EFBIG``, ...) raises :class:`OutputError` and nothing is published.
 * **Publishing** (:meth:`OutputSet.publish`) moves every staged file into place. Without
   ``force`` each file is hard-linked to its name (``link`` fails if the name exists), so "no
@@ -48,7 +48,7 @@ import threading
 from collections.abc import Iterable
 from pathlib import Path
 
-from data_formats._atomic import writing
+from data_formats.files import writing
 
 from ..errors import BrdffitError
 
@@ -89,7 +89,7 @@ def remove_tree(folder) -> None:
 
 
 def _describe(path: Path, st) -> str:
-    from data_formats._files import describe_mode
+    from data_formats.files import describe_mode
 
     return "a symbolic link" if stat.S_ISLNK(st.st_mode) else describe_mode(st.st_mode)
 

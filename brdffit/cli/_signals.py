@@ -12,7 +12,7 @@ descriptor (:func:`signal.set_wakeup_fd`): the C-level handler writes the signal
 pipe at once, and a watcher thread blocked on that pipe wakes immediately, whatever the main
 thread is doing. Then, in this order:
 
-1. **Writes are closed** (:func:`data_formats._atomic.close_writes`): no new write starts (a
+1. **Writes are closed** (:func:`data_formats.files.close_writes`): no new write starts (a
    writer that tries waits until the process ends), and the watcher waits for the writes in
    flight (a figure, a table, an output set's publication) to finish, for at most
    :data:`WRITE_GRACE` seconds or until a second signal. Only then is anything removed: a
@@ -43,7 +43,7 @@ import signal
 import sys
 import threading
 
-from data_formats._atomic import close_writes, open_writes
+from data_formats.files import close_writes, open_writes
 
 from . import _outputs
 

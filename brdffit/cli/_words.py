@@ -9,15 +9,13 @@ from __future__ import annotations
 
 import re
 
-#: Python argument of ``brdffit.fit`` / ``sample_posterior`` → the ``brdffit fit`` flag.
+from ..config import OPTIONS
+
+#: Python argument of ``brdffit.fit`` / ``sample_posterior`` → the ``brdffit fit`` flag: the fit
+#: options' flags (:data:`brdffit.config.OPTIONS`) and the ``--mcmc`` group's.
 FLAG_FOR = {
-    "max_steps": "--max-steps", "multistart": "--multistart", "init": "--init",
-    "fixed": "--fix", "bounds": "--bound", "cutoff": "--cutoff", "subsample": "--subsample",
-    "loss": "--loss", "solver": "--solver", "rtol": "--rtol", "atol": "--atol",
-    "ftol": "--ftol", "precision": "--precision", "covariance": "--covariance",
-    "weighting": "--weighting",
-    "seed": "--seed", "nwalkers": "--walkers", "nsteps": "--steps", "burn": "--burn",
-    "noise": "--noise",
+    **{key: option.flag for key, option in OPTIONS.items() if option.flag},
+    "nwalkers": "--walkers", "nsteps": "--steps", "burn": "--burn", "noise": "--noise",
 }
 
 _RULES = (

@@ -1,4 +1,7 @@
-"""``brdffit export RESULT.json --to mitsuba-xml|mitsuba-dict|gltf -o OUT``: a renderer material.
+"""``brdffit export RESULT.json --to TARGET -o OUT``: a renderer material.
+
+The targets are :data:`brdffit.export.TARGETS` (``mitsuba-xml``, ``mitsuba-dict``, ``gltf``):
+the ``--to`` choices and the help are read from it.
 
 The result's model must be the target's own BSDF (a renderer-native model: ``mitsuba-principled``,
 ``mitsuba-roughconductor*``, ``gltf-pbr``); otherwise the command fails naming the native model
@@ -10,10 +13,9 @@ approximation's error in the metrics of a fit. The mapping is documented in
 
 from __future__ import annotations
 
+from ..export import TARGETS
 from ._common import check_outputs, write_text
-from .plotting import _read_result, add_model_option
-
-TARGETS = ("mitsuba-xml", "mitsuba-dict", "gltf")
+from .plotting import add_model_option, read_result
 
 
 def add_parser(sub, parents) -> None:
@@ -21,17 +23,18 @@ def add_parser(sub, parents) -> None:
         "export",
         parents=parents,
         allow_abbrev=False,
-        help="write a fitted material for Mitsuba 3 (XML, load_dict JSON) or glTF 2.0",
+        help="write a fitted material for a renderer ("
+        + ", ".join(sorted({t.renderer for t in TARGETS.values()})) + ")",
         description="Write the material of a `brdffit fit --out` result for a renderer: "
-        "mitsuba-xml (a <bsdf> element for a Mitsuba 3 scene), mitsuba-dict (JSON of the dict "
-        "mitsuba.load_dict takes) or gltf (a glTF 2.0 document with one metallic-roughness "
-        "material). Only renderer-native models export exactly; --approximate fits the native "
+        + "; ".join(f"{t.name} ({t.description})" for t in TARGETS.values())
+        + ". Only renderer-native models export exactly; --approximate fits the native "
         "model to any other and reports the approximation's error.",
     )
     p.add_argument("result", metavar="RESULT.json", help="a result written by `brdffit fit --out`")
     add_model_option(p, "export")
-    p.add_argument("--to", required=True, choices=TARGETS, type=str.lower,
-                   help="the target format")
+    p.add_argument("--to", required=True, choices=list(TARGETS), type=str.lower,
+                   help="the target format: " + ", ".join(
+                       f"{t.name} (fit {t.native} for an exact export)" for t in TARGETS.values()))
     p.add_argument("--output", "-o", required=True, metavar="OUT", help="the file to write")
     p.add_argument("--approximate", action="store_true",
                    help="for a model with no exact counterpart: fit the target's native model to "
@@ -46,7 +49,7 @@ def run(args) -> int:
     from ..export import export
 
     with check_outputs([args.output], args.force) as outputs:
-        result = _read_result(args.result, model=args.model, flag="")
+        result = read_result(args.result, model=args.model, flag="")
         start = time.perf_counter()
         out = export(result, args.to, approximate=args.approximate)
         text = out.text()

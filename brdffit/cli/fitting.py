@@ -78,53 +78,33 @@ def add_parser(sub, parents) -> None:
 
 def add_fit_options(target, solver=None) -> None:
     """The options that shape a fit, each overriding the preset, added to ``target`` (a parser
-    or an argument group); the solver's go to ``solver`` (default ``target``). ``brdffit fit``
-    and ``brdffit batch`` both take them, from here; :func:`options_from` reads them."""
+    or an argument group); the solver's (a preset's ``[solver]`` table) go to ``solver``
+    (default ``target``). ``brdffit fit`` and ``brdffit batch`` both take them, from here; the
+    flags, their help and types come from :data:`brdffit.config.OPTIONS`; :func:`options_from`
+    reads them."""
+    from ..config import OPTIONS
+
     target.add_argument("--config", "-c", metavar="PRESET",
                         help="a TOML preset: a path, or a bare name looked up as "
                         "configs/NAME.toml")
-    target.add_argument("--loss",
-                        help="residual weighting: linear, cosine, log, relative (+huber)")
-    target.add_argument("--cutoff", type=float, metavar="DEG",
-                        help="drop samples with θi or θo above DEG degrees")
-    target.add_argument("--weighting", choices=("angles", "samples"), type=str.lower,
-                        help="how samples count: by the share of the angles each stands for "
-                        "(default; undoes the MERL θh warp) or once each")
-    target.add_argument("--fix", action="append", metavar="NAME=VALUE",
-                        help="hold a parameter at a value (f0=0.04 or f0=0.9,0.6,0.3); "
-                        "repeatable")
-    target.add_argument("--init", action="append", metavar="NAME=VALUE",
-                        help="start a parameter at a value; repeatable")
-    target.add_argument("--subsample", type=_count_or_fraction, metavar="N",
-                        help="fit on N randomly chosen valid samples (or a fraction like 0.1)")
-    target.add_argument("--seed", type=int, help="seed for subsampling and multi-start")
-    target.add_argument("--multistart", type=int, metavar="K",
-                        help="K extra random starts, best kept")
-    target.add_argument("--bound", action="append", metavar="NAME=LO,HI",
-                        help="narrow a parameter's bounds (alpha=0.01,0.5); repeatable")
-    _add_solver_arguments(target if solver is None else solver)
+    for key, option in OPTIONS.items():
+        if option.flag is None:
+            continue
+        group = solver if option.table == "solver" and solver is not None else target
+        if key in _TABLE_PARSERS:
+            group.add_argument(option.flag, dest=key, action="append", metavar=option.metavar,
+                               help=option.help)
+            continue
+        kind = _count_or_fraction if key == "subsample" else option.kind
+        if option.choices:
+            group.add_argument(option.flag, dest=key, choices=option.choices, type=str.lower,
+                               help=option.help)
+        else:
+            group.add_argument(option.flag, dest=key, type=kind, metavar=option.metavar,
+                               help=option.help)
 
 
-def _add_solver_arguments(g) -> None:
-    """The solver's options (those of ``brdffit.fit``)."""
-    g.add_argument("--solver", help="lm (Levenberg-Marquardt, default), gauss-newton or dogleg")
-    g.add_argument("--max-steps", type=int, metavar="N",
-                   help="solver steps per start before giving up (default 200)")
-    g.add_argument("--rtol", type=float, metavar="X",
-                   help="relative step tolerance of the stall test (default 1e-14 in float64, 1e-6 in float32)")
-    g.add_argument("--atol", type=float, metavar="X",
-                   help="absolute step tolerance of the stall test (default 1e-14 in float64, 1e-6 in float32)")
-    g.add_argument("--ftol", type=float, metavar="X",
-                   help="the optimality test: converged when the best bounded Gauss-Newton step "
-                   "would lower the cost by less than X times the cost (default 1e-9 in "
-                   "float64, 1e-6 in float32)")
-    g.add_argument("--precision", choices=("float64", "float32"), type=str.lower,
-                   help="model evaluation dtype (default float64)")
-    g.add_argument("--covariance", choices=("sandwich", "gn"), type=str.lower,
-                   help="standard errors: sandwich (robust, default) or gn (classical)")
-
-
-def _parse_bounds(items) -> dict:
+def _parse_bounds(items, flag="--bound") -> dict:
     """``["alpha=0.01,0.5"]`` → ``{"alpha": (0.01, 0.5)}``."""
     out = {}
     for item in items or ():
@@ -144,20 +124,14 @@ def _parse_bounds(items) -> dict:
 def options_from(args):
     """Preset (if any) merged with the flags, checked against the model's parameters."""
     from .. import get_model
-    from ..config import FitOptions, check_fit_options, load_config
+    from ..config import OPTIONS, FitOptions, check_fit_options, load_config
 
-    check_fit_options({"cutoff": args.cutoff, "subsample": args.subsample, "seed": args.seed,
-                       "multistart": args.multistart}, lambda key: f"--{key}")
+    given = {key: getattr(args, key) for key in OPTIONS if OPTIONS[key].flag}
+    check_fit_options(given, lambda key: OPTIONS[key].flag)
     _check_mcmc_ranges(args)
-    flags = FitOptions(
-        model=args.model, loss=args.loss, solver=args.solver, cutoff=args.cutoff,
-        subsample=args.subsample, seed=args.seed, multistart=args.multistart,
-        rtol=args.rtol, atol=args.atol, ftol=args.ftol, max_steps=args.max_steps,
-        precision=args.precision, covariance=args.covariance, weighting=args.weighting,
-        init=parse_assignments(args.init, "--init"), fixed=parse_assignments(args.fix, "--fix"),
-        bounds=_parse_bounds(args.bound),
-        sources=("command line",),
-    )
+    for key, parse in _TABLE_PARSERS.items():
+        given[key] = parse(given[key], OPTIONS[key].flag)
+    flags = FitOptions(model=args.model, **given, sources=("command line",))
     preset = load_config(args.config) if args.config else FitOptions()
     options = preset.merged(flags)
     if options.model is None:
@@ -174,6 +148,10 @@ def options_from(args):
         options.check_params(model)
     options = _check_names(options)
     return models, options
+
+
+#: The table options' flags (repeatable ``NAME=VALUE``) and their parsers.
+_TABLE_PARSERS = {"init": parse_assignments, "fixed": parse_assignments, "bounds": _parse_bounds}
 
 
 def _check_mcmc_ranges(args) -> None:

@@ -75,7 +75,7 @@ def write_figures(data, path, result=None, *, progress=None):
 MAX_RESULT_BYTES = 16 << 20
 
 
-def _read_result(path, *, model=None, flag="--fit"):
+def read_result(path, *, model=None, flag="--fit"):
     """A :class:`FitResult` from a result file, its model and parameters checked against the
     registry. ``model``: the ``--model`` that picks one result of a several-model file.
     ``flag``: the option that named ``path`` in the command run (``""`` for an argument), so
@@ -84,7 +84,7 @@ def _read_result(path, *, model=None, flag="--fit"):
     p = Path(path)
     if not p.exists():
         raise UsageError(f"{where}: no such file (write one with `brdffit fit ... --out`)")
-    from data_formats._files import NotRegularFileError, open_regular
+    from data_formats.files import NotRegularFileError, open_regular
 
     try:
         with open_regular(p, "rb") as fh:
@@ -139,7 +139,7 @@ def run(args) -> int:
 
     if args.model and not args.fit:
         raise UsageError(f"--model {args.model} picks a result of --fit RESULT.json; pass --fit")
-    result = _read_result(args.fit, model=args.model) if args.fit else None
+    result = read_result(args.fit, model=args.model) if args.fit else None
     written = figure_paths(args.output, args.file)
     with check_outputs(written, args.force) as outputs:
         data = read_input(args.file)

@@ -12,7 +12,7 @@ several, as there. ``--size``, ``--spp`` and ``--environment`` are checked again
 from __future__ import annotations
 
 from ._common import check_outputs, number
-from .plotting import _read_result, add_model_option
+from .plotting import read_result, add_model_option
 
 
 def add_parser(sub, parents) -> None:
@@ -49,7 +49,7 @@ def run(args) -> int:
     check_render_options(lambda name: f"--{name}", size=args.size, spp=args.spp,
                          environment=args.environment)
     with check_outputs([args.output], args.force) as outputs:
-        result = _read_result(args.result, model=args.model, flag="")
+        result = read_result(args.result, model=args.model, flag="")
         out = export(result, "mitsuba-dict", approximate=args.approximate)
         start = time.perf_counter()
         image = render_mitsuba(out.payload, size=args.size, spp=args.spp,

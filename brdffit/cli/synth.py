@@ -186,9 +186,9 @@ def run(args) -> int:
 
     params = parse_assignments(args.param, "--param")
     if args.fit:
-        from .plotting import _read_result
+        from .plotting import read_result
 
-        result = _read_result(args.fit, model=args.model)
+        result = read_result(args.fit, model=args.model)
         model = get_model(result.model_name)
         params = {**{k: np.asarray(v, float) for k, v in result.params.items()}, **params}
     elif args.model:

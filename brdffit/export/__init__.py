@@ -37,10 +37,12 @@ brdffit model / parameter                target
   ``roughness``                          ``roughnessFactor`` (``α = roughness²``)
 =======================================  ======================================================
 
-Targets: ``"mitsuba-dict"`` (a dict for ``mitsuba.load_dict``; written to a file as JSON),
-``"mitsuba-xml"`` (a ``<bsdf>`` element to paste into a ``<scene>``), ``"gltf"`` (a glTF 2.0
-JSON document with one material). Where to add one: a module in this package writing the
-payload, an entry in :data:`TARGETS` and in :data:`NATIVE_FOR`.
+Targets: the registry :data:`TARGETS` (name -> :class:`Target`), the one list the command line
+(``brdffit export --to``, its help), the error messages and the tests read: ``"mitsuba-dict"``
+(a dict for ``mitsuba.load_dict``; written to a file as JSON), ``"mitsuba-xml"`` (a ``<bsdf>``
+element to paste into a ``<scene>``), ``"gltf"`` (a glTF 2.0 JSON document with one material).
+To add one: a function writing the payload (a module of this package for a format of its own)
+and a :class:`Target` entry in :data:`TARGETS`; ``tests/test_one_owner.py`` runs every entry.
 
 Every file is well-formed whatever the data: the table's name goes into the provenance note
 (the XML's leading comment, the glTF material's ``extras.brdffit``) as a Python string literal
@@ -55,28 +57,87 @@ import dataclasses
 import functools
 import json
 import warnings
+from collections.abc import Callable
 
 import numpy as np
 
+from .._lazy import lazy_exports
 from ..errors import BrdffitError, UnknownNameError, canonical_name
 from ..metrics import metric_text, metrics_text
 from ._text import literal, xml_comment
-from .gltf import gltf_document, params_from_gltf
-from .mitsuba import is_mitsuba_model, mitsuba_dict, mitsuba_xml
 
-__all__ = ["TARGETS", "NATIVE_FOR", "ApproximationWarning", "Exported", "NoExactCounterpart",
-           "NotExportable", "export", "gltf_document", "mitsuba_dict", "mitsuba_xml",
-           "params_from_gltf"]
+__all__ = ["TARGETS", "Target", "ApproximationWarning", "Exported", "NoExactCounterpart",
+           "NotExportable", "export", "export_payload", "gltf_document", "mitsuba_dict",
+           "mitsuba_xml", "params_from_gltf", "render_merl"]
 
-#: Export targets and the test "is this model the target's own BSDF?".
-TARGETS = {
-    "mitsuba-dict": is_mitsuba_model,
-    "mitsuba-xml": is_mitsuba_model,
-    "gltf": lambda name: name == "gltf-pbr",
-}
-#: The native model to fit (or to approximate with) for each target.
-NATIVE_FOR = {"mitsuba-dict": "mitsuba-principled", "mitsuba-xml": "mitsuba-principled",
-              "gltf": "gltf-pbr"}
+# The writers import the models (and JAX) when first used, so that the command line reads the
+# registry without them.
+__getattr__, __dir__ = lazy_exports(__name__, globals(), {
+    "gltf_document": ".gltf", "params_from_gltf": ".gltf",
+    "mitsuba_dict": ".mitsuba", "mitsuba_xml": ".mitsuba"})
+
+
+@dataclasses.dataclass(frozen=True)
+class Target:
+    """An export target: what ``brdffit export --to NAME`` and :func:`export` write.
+
+    Attributes:
+        name: the target's name (``--to``; names ignore case).
+        description: what the file is, for the command line's help.
+        renderer: the renderer as messages name it (``"Mitsuba"``, ``"glTF"``).
+        native: the model to fit for an exact export (and to approximate with).
+        is_native: ``is_native(model_name)``: is the model the target's own BSDF?
+        payload: ``payload(model, params, note)``: the dict or text for complete ``params`` of
+            a native model; ``note(comment=...)`` gives the provenance line.
+        others: more native models a message suggests (``"for metals also ..."``).
+    """
+
+    name: str
+    description: str
+    renderer: str
+    native: str
+    is_native: Callable[[str], bool]
+    payload: Callable
+    others: str = ""
+
+
+def _is_mitsuba(name: str) -> bool:
+    from .mitsuba import is_mitsuba_model
+
+    return is_mitsuba_model(name)
+
+
+def _mitsuba_dict(model, params, note):
+    from .mitsuba import mitsuba_dict
+
+    return mitsuba_dict(model, params)
+
+
+def _mitsuba_xml(model, params, note):
+    from .mitsuba import mitsuba_xml
+
+    return xml_comment(note(comment=True)) + "\n" + mitsuba_xml(model, params)
+
+
+def _gltf(model, params, note):
+    from .gltf import gltf_document
+
+    doc = gltf_document(params)
+    doc["materials"][0]["extras"] = {"brdffit": note(comment=False)}
+    return doc
+
+
+_MITSUBA_METALS = "for metals also mitsuba-roughconductor"
+
+#: The export targets, by name: the single list of what can be exported.
+TARGETS: dict[str, Target] = {t.name: t for t in (
+    Target("mitsuba-xml", "a <bsdf> element for a Mitsuba 3 scene", "Mitsuba",
+           "mitsuba-principled", _is_mitsuba, _mitsuba_xml, _MITSUBA_METALS),
+    Target("mitsuba-dict", "JSON of the dict mitsuba.load_dict takes", "Mitsuba",
+           "mitsuba-principled", _is_mitsuba, _mitsuba_dict, _MITSUBA_METALS),
+    Target("gltf", "a glTF 2.0 document with one metallic-roughness material", "glTF",
+           "gltf-pbr", lambda name: name == "gltf-pbr", _gltf),
+)}
 
 
 class NoExactCounterpart(BrdffitError):
@@ -96,7 +157,7 @@ class Exported:
     """An exported material.
 
     Attributes:
-        target: ``"mitsuba-dict"``, ``"mitsuba-xml"`` or ``"gltf"``.
+        target: the name of a :data:`TARGETS` entry.
         payload: the dict (``mitsuba-dict``, ``gltf``) or XML text (``mitsuba-xml``).
         model_name, params: the native model and parameters written.
         approximation: the ``FitResult`` of the native model fitted to the source model when
@@ -126,17 +187,6 @@ def _note(native, fitted, source, approx, *, comment: bool) -> str:
             f"{metric_text('rmse_log', m['rmse_log'])}, {metric_text('rel_error', m['rel_error'])}")
 
 
-def _payload(target, model, params, note):
-    """The target's payload; ``note(comment=...)`` gives the provenance line."""
-    if target == "mitsuba-dict":
-        return mitsuba_dict(model, params)
-    if target == "mitsuba-xml":
-        return xml_comment(note(comment=True)) + "\n" + mitsuba_xml(model, params)
-    doc = gltf_document(params)
-    doc["materials"][0]["extras"] = {"brdffit": note(comment=False)}
-    return doc
-
-
 def _check_finite(name, params) -> None:
     for key, value in params.items():
         if not np.all(np.isfinite(np.asarray(value, float))):
@@ -144,24 +194,22 @@ def _check_finite(name, params) -> None:
                                 f"finite number: there is no material to export; fit again")
 
 
-def _no_counterpart(name, target, native):
+def _no_counterpart(name, target: Target):
+    also = f"; {target.others}" if target.others else ""
     return NoExactCounterpart(
-        f"model {name!r} has no exact counterpart in {target}: its formula is not the renderer's. "
-        f"Fit the native model instead (brdffit fit TABLE --model {native}; for metals also "
-        f"mitsuba-roughconductor) or pass --approximate (approximate=True) to fit {native} to "
-        f"the fitted {name} and report that approximation's error"
-        if target != "gltf" else
-        f"model {name!r} has no exact counterpart in glTF: fit {native} instead "
-        f"(brdffit fit TABLE --model {native}) or pass --approximate (approximate=True) to fit "
-        f"{native} to the fitted {name} and report that approximation's error")
+        f"model {name!r} has no exact counterpart in {target.renderer} ({target.name}): its "
+        f"formula is not the renderer's. Fit the native model instead (brdffit fit TABLE "
+        f"--model {target.native}{also}) or pass --approximate (approximate=True) to fit "
+        f"{target.native} to the fitted {name} and report that approximation's error")
 
 
 def export(result, to: str, *, approximate: bool = False, **approx_options) -> Exported:
     """Export a :class:`~brdffit.fitting.FitResult` (or ``(model_name, params)``) to ``to``.
 
-    Raises :class:`NoExactCounterpart` when the model is not the target's BSDF and
-    ``approximate`` is false; with ``approximate=True`` it fits :data:`NATIVE_FOR` ``[to]`` to
-    the fitted model (options passed to :func:`~brdffit.export.approximate.approximate`).
+    ``to`` is a name in :data:`TARGETS`. Raises :class:`NoExactCounterpart` when the model is
+    not the target's BSDF and ``approximate`` is false; with ``approximate=True`` it fits the
+    target's ``native`` model to the fitted model (options passed to
+    :func:`~brdffit.export.approximate.approximate`).
     Raises :class:`NotExportable` for a parameter that is not finite.
     """
     from ..models import get_model
@@ -173,23 +221,23 @@ def export(result, to: str, *, approximate: bool = False, **approx_options) -> E
     model = get_model(name)
     source = getattr(result, "table", "") or "data"
     _check_finite(name, params)
-    approx = None
-    if not TARGETS[to](model.name):
+    target, approx = TARGETS[to], None
+    if not target.is_native(model.name):
         if not approximate:
-            raise _no_counterpart(model.name, to, NATIVE_FOR[to])
+            raise _no_counterpart(model.name, target)
         from .approximate import approximate as fit_native
 
-        approx = fit_native(model, model.complete(params), NATIVE_FOR[to], **approx_options)
+        approx = fit_native(model, model.complete(params), target.native, **approx_options)
         model, params = get_model(approx.model_name), approx.params
         _check_finite(model.name, params)
     full = model.complete(params)
     note = functools.partial(_note, model.name, name, source, approx)
-    return Exported(to, _payload(to, model, full, note), model.name, full, approx)
+    return Exported(to, target.payload(model, full, note), model.name, full, approx)
 
 
 def export_payload(result, to: str, *, approximate: bool = False, **approx_options):
-    """:func:`export`'s payload alone (what ``FitResult.export`` returns); an approximation is
-    reported as an :class:`ApproximationWarning` carrying its metrics."""
+    """:func:`export`'s payload alone (what :meth:`brdffit.FitResult.export` returns); an
+    approximation is reported as an :class:`ApproximationWarning` carrying its metrics."""
     out = export(result, to, approximate=approximate, **approx_options)
     if out.approximation is not None:
         m = out.approximation.metrics
@@ -198,3 +246,18 @@ def export_payload(result, to: str, *, approximate: bool = False, **approx_optio
             f"{out.model_name} approximates {source}: "
             + metrics_text(m)), stacklevel=3)
     return out.payload
+
+
+def render_merl(result, name: str | None = None, shape=None):
+    """The fitted model of ``result`` on a whole MERL grid (cell corners), as a ``MERLTable``.
+
+    Cells below the horizon are missing, as in the database (``data_formats.merl.synthesize``);
+    write it with ``data_formats.merl.write_merl`` for a fitted ``.binary``.
+    """
+    from data_formats.merl import MERL_SHAPE, synthesize
+
+    from ..models.evaluate import evaluate_model
+
+    fitted = result.model
+    return synthesize(lambda wi, wo: evaluate_model(fitted.model, fitted.params, wi, wo),
+                      name=name or f"{result.model_name}-fit", shape=shape or MERL_SHAPE)

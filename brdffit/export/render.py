@@ -108,13 +108,13 @@ def render_mitsuba(bsdf: dict, **options) -> np.ndarray:
 
 def write_png(image: np.ndarray, path) -> tuple[float, float]:
     """Write ``image`` (linear radiance) as a PNG with the figures' logarithmic tone mapping
-    (:func:`brdffit.plots._style.log_tonemap`: the median lit luminance at 0.4, the 99.9th
+    (:func:`brdffit.plots.log_tonemap`: the median lit luminance at 0.4, the 99.9th
     percentile at white, hue kept), as brdffit's own lit-sphere figure shows it; returns the
     ``(ref, top)`` luminances used."""
     import matplotlib.image
 
-    from ..plots import _style
+    from ..plots import log_levels, log_tonemap
 
-    ref, top = _style.log_levels(image)
-    matplotlib.image.imsave(str(path), np.clip(_style.log_tonemap(image, ref, top), 0.0, 1.0))
+    ref, top = log_levels(image)
+    matplotlib.image.imsave(str(path), np.clip(log_tonemap(image, ref, top), 0.0, 1.0))
     return ref, top

@@ -29,8 +29,8 @@ from .outcome import DATA_VERDICTS
 from .options import FIT_DEFAULTS, Settings, default_precision, fit_options, tolerances
 from .parameters import Scalars, assign
 from .problem import Problem
-from .report import fit_report
-from .result import FitResult, FittedModel, json_safe, value_with_error
+from .report import fit_report, value_with_error
+from .result import FitResult, FittedModel, json_safe
 from .result_json import ResultChoiceError, ResultFormatError
 from .solvers import DEFAULT_SOLVER, SOLVERS
 from .start import Features, measure

@@ -48,7 +48,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..config import check_fit_options
+from ..config import OPTIONS
 from ..errors import ConfigError, FitError, UnknownNameError
 from .losses import Loss
 
@@ -151,8 +151,7 @@ class Selection:
 
 def _static_rows(wi, wo, cutoff):
     ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    if cutoff is not None:
-        check_fit_options({"cutoff": cutoff})
+    if cutoff is not None:  # in range: checked with the other options (brdffit.config)
         cmin = np.cos(np.radians(float(cutoff)))
         ok &= (wi[:, 2] >= cmin) & (wo[:, 2] >= cmin)
     return np.flatnonzero(ok)
@@ -186,8 +185,9 @@ def _gather(a, rows, n_rows: int, fill, dtype):
     return out
 
 
-#: How samples are weighted against each other (:func:`measure_weight`); the first is the default.
-WEIGHTINGS = ("angles", "samples")
+#: How samples are weighted against each other (:func:`measure_weight`); the first is the default
+#: (the choices of the ``weighting`` option, :data:`brdffit.config.OPTIONS`).
+WEIGHTINGS = OPTIONS["weighting"].choices
 
 
 def measure_weight(samples, rows, weighting: str = "angles"):
@@ -362,8 +362,7 @@ def check_memory(n_cells: int, name: str = "", backend: str | None = None) -> No
 class _Directions:
     """The selected rows of a sample set and their directions: ``wi``, ``wo`` on the host
     (ascending, padded to whole blocks with normal incidence) and on the device (interleaved,
-    :func:`_interleave`, in the compute dtype). ``pins`` keeps the source arrays alive while
-    the entry is cached (their identity is its key)."""
+    :func:`_interleave`, in the compute dtype)."""
 
     rows: np.ndarray
     n_usable: int
@@ -372,23 +371,51 @@ class _Directions:
     wo: np.ndarray
     wi_device: jax.Array
     wo_device: jax.Array
-    pins: tuple
 
 
-#: The last selection's :class:`_Directions`, by what determines them (:func:`_directions`).
-_LAST_DIRECTIONS: dict = {}
+class _Frozen:
+    """A read-only direction array as a cache key: equal to another when both view the same
+    memory of the same read-only owner the same way (:func:`_frozen`). It keeps the owner alive
+    while the key is cached, so that memory is not reused for other values."""
+
+    __slots__ = ("array", "key", "owner")
+
+    def __init__(self, array: np.ndarray, key: tuple, owner: np.ndarray):
+        self.array, self.key, self.owner = array, key, owner
+
+    def __hash__(self):
+        return hash(self.key)
+
+    def __eq__(self, other):
+        return isinstance(other, _Frozen) and self.key == other.key
 
 
-def _frozen_identity(a: np.ndarray):
-    """A key for the contents of ``a`` that holds while ``a``'s owner is alive: ``a`` and the
+class _Unkeyed:
+    """A value passed through a memoised function without being part of its key (all equal)."""
+
+    __slots__ = ("value",)
+
+    def __init__(self, value):
+        self.value = value
+
+    def __hash__(self):
+        return 0
+
+    def __eq__(self, other):
+        return isinstance(other, _Unkeyed)
+
+
+def _frozen(a: np.ndarray) -> _Frozen | None:
+    """``a`` as a key for its contents, which hold while ``a``'s owner is alive: ``a`` and the
     array that owns its memory are read-only (a MERL grid's cached cell directions,
-    :func:`data_formats.merl.cell_directions`). ``(None, None)`` for any other array."""
+    :func:`data_formats.merl.cell_directions`). ``None`` for any other array."""
     owner = a
     while isinstance(owner.base, np.ndarray):
         owner = owner.base
     if a.flags.writeable or owner.flags.writeable:
-        return None, None
-    return (id(owner), a.__array_interface__["data"][0], a.shape, a.strides, a.dtype.str), owner
+        return None
+    return _Frozen(a, (id(owner), a.__array_interface__["data"][0], a.shape, a.strides,
+                       a.dtype.str), owner)
 
 
 def _directions(samples, cutoff, sub: Subsample | None, seed: int, dtype: str) -> _Directions:
@@ -396,19 +423,34 @@ def _directions(samples, cutoff, sub: Subsample | None, seed: int, dtype: str) -
     the ``subsample`` drawn with ``seed``) and their directions, host and device.
 
     They depend on the directions alone, and every MERL table of a layout has the same ones
-    (read-only views of one cached grid): the last result is kept for read-only directions,
-    so fitting table after table (a batch, a benchmark, several models) gathers, transfers
-    and interleaves only the values. Writable directions (a sample list) are always computed.
+    (read-only views of one cached grid): for read-only directions the last result is
+    memoised (:func:`_memo_directions`), so fitting table after table (a batch, a benchmark,
+    several models) gathers, transfers and interleaves only the values. Writable directions (a
+    sample list) are always computed.
     """
     wi, wo = np.asarray(samples.wi, float), np.asarray(samples.wo, float)
-    (kwi, pin_i), (kwo, pin_o) = _frozen_identity(wi), _frozen_identity(wo)
-    # the dtype as JAX makes it now (float32 for "float64" without x64)
-    made = jax.dtypes.canonicalize_dtype(np.dtype(dtype))
-    key = None if kwi is None or kwo is None else (kwi, kwo, cutoff, sub, int(seed), str(made),
-                                                   chunk_cells())
-    cached = None if key is None else _LAST_DIRECTIONS.get(key)
-    if cached is not None:
-        return cached
+    name = getattr(samples, "name", "")
+    fwi, fwo = _frozen(wi), _frozen(wo)
+    if fwi is None or fwo is None:
+        return _laid_out(wi, wo, cutoff, sub, seed, dtype, name)
+    # the dtype as JAX makes it now (float32 for "float64" without x64) is part of the key
+    made = str(jax.dtypes.canonicalize_dtype(np.dtype(dtype)))
+    return _memo_directions(fwi, fwo, cutoff, sub, int(seed), dtype, made, chunk_cells(),
+                            _Unkeyed(name))
+
+
+@functools.lru_cache(maxsize=1)
+def _memo_directions(wi: _Frozen, wo: _Frozen, cutoff, sub, seed, dtype, made, chunks,
+                     name: _Unkeyed):
+    """:func:`_laid_out` memoised for read-only directions. A pure function of its key (``made``,
+    the dtype JAX makes, and ``chunks``, the block size, are there as keys only), so a hit gives
+    what a fresh selection gives; one entry: the last selection. ``name`` labels a memory error
+    and is not part of the key."""
+    return _laid_out(wi.array, wo.array, cutoff, sub, seed, dtype, name.value)
+
+
+def _laid_out(wi, wo, cutoff, sub, seed, dtype, name) -> _Directions:
+    """:func:`_directions` computed: the rows kept, gathered, padded and laid out."""
     rows = _static_rows(wi, wo, cutoff)
     n_usable = len(rows)
     if sub is not None and n_usable:
@@ -417,7 +459,7 @@ def _directions(samples, cutoff, sub: Subsample | None, seed: int, dtype: str) -
         rows = rows[sub.choose(theta_h, np.random.default_rng(seed))]
     chunks, pad = _blocks(len(rows))
     n = len(rows) + pad
-    check_memory(n, getattr(samples, "name", ""))
+    check_memory(n, name)
     # ascending rows: a sequential gather, 5x faster than gathering in the interleaved order
     up = (0.0, 0.0, 1.0)  # padding cells: normal incidence, zero weight
     wi_h, wo_h = _gather(wi, rows, n, up, "float64"), _gather(wo, rows, n, up, "float64")
@@ -425,11 +467,7 @@ def _directions(samples, cutoff, sub: Subsample | None, seed: int, dtype: str) -
         a.flags.writeable = False
     wi_d, wo_d = (_interleave(jax.device_put(a), chunks=chunks, dtype=dtype)
                   for a in (wi_h, wo_h))
-    out = _Directions(rows, n_usable, chunks, wi_h, wo_h, wi_d, wo_d, (pin_i, pin_o))
-    if key is not None:
-        _LAST_DIRECTIONS.clear()
-        _LAST_DIRECTIONS[key] = out
-    return out
+    return _Directions(rows, n_usable, chunks, wi_h, wo_h, wi_d, wo_d)
 
 
 def sigma_weight(loss: Loss, rho, sigma, cos_i, cos_o) -> np.ndarray:

@@ -36,7 +36,9 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             ``MERLTable``, a ``SampleSet``).
         model: a registry name (``"ggx"``) or a :class:`~brdffit.models.Model`.
         options: a :class:`~brdffit.config.FitOptions` (a preset, say) or a mapping of option
-            names; the keyword options override it, option by option.
+            names; the keyword options override it, option by option. A
+            :class:`~brdffit.fitting.options.Settings` (options checked and resolved by
+            :meth:`Settings.of`) is taken as it is.
         progress: ``callback(event, info)`` with events ``setup``, ``start``, ``scan-step`` and
             ``scan`` (one per candidate of the start scan), ``warm-step`` and ``warm-done``
             (large tables: the warm start on a subset of the blocks), ``step`` (the whole
@@ -53,16 +55,17 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
             :mod:`.outcome`); the error carries the result (``err.result``). With ``False``
             that result is returned: ``success=False``, the status and a message saying what
             to do.
-        **kwargs: the options, each described with its default in
-            :class:`~brdffit.fitting.options.Settings`: ``loss``, ``solver``, ``init``,
-            ``fixed``, ``bounds``, ``cutoff``, ``subsample``, ``seed``, ``multistart``,
-            ``max_steps``, ``rtol``, ``atol``, ``ftol``, ``scan``, ``precision``,
-            ``covariance``, ``weighting``. All are checked before the table is read.
+        **kwargs: the options, by name: the fields of :class:`~brdffit.config.FitOptions`
+            but ``model``, each described with its default in
+            :class:`~brdffit.fitting.options.Settings`. All are checked before the table is
+            read.
     """
-    given = fit_options(options, **kwargs)
+    if isinstance(options, Settings) and not kwargs:
+        settings = options  # checked and resolved already (brdffit.fit)
+    else:
+        settings = Settings.of(fit_options(options, **kwargs))
     t0 = time.perf_counter()
     model = get_model(model)
-    settings = Settings.of(given)
     events = Events(progress)
     solver = make_solver(settings.solver, settings.rtol, settings.atol, None,
                          COST_NOISE[settings.precision], settings.ftol)

@@ -3,9 +3,11 @@
 
 :func:`fit_options` merges a ``FitOptions`` (or a mapping of option names) with keyword
 arguments, the keywords winning option by option, and refuses unknown names, out-of-range
-numbers (:func:`brdffit.config.check_fit_options`, the one place the ranges live) and unknown
-``covariance``/``precision``/``weighting`` names before any work. :meth:`Settings.of` then
-resolves what is left: the loss by name, the precision and the tolerances that depend on it.
+numbers (:func:`brdffit.config.check_fit_options`) and unknown ``covariance``/``precision``/
+``weighting`` names (:func:`brdffit.config.canonical_choices`) before any work: every option's
+default, range and choices live in one place, :class:`brdffit.config.FitOptions`.
+:meth:`Settings.of` then resolves what is left: the loss by name, the precision and the
+tolerances that depend on it; :func:`brdffit.fitting.fit` takes a ``Settings`` as it is.
 """
 
 from __future__ import annotations
@@ -15,34 +17,14 @@ from collections.abc import Mapping
 
 import jax
 
-from ..errors import UnknownNameError, canonical_name
-from .data import WEIGHTINGS
-from .losses import DEFAULT_LOSS, Loss, get_loss
-from .solvers import DEFAULT_SOLVER, FTOL
+from ..config import CODE_DEFAULTS, FitOptions, canonical_choices, check_fit_options
+from .losses import Loss, get_loss
+from .solvers import FTOL
 
 #: Every option of :func:`brdffit.fitting.fit` with its default (``None``: decided from the
-#: data, the precision or not at all; see the function's docstring).
-FIT_DEFAULTS = {
-    "loss": DEFAULT_LOSS,
-    "solver": DEFAULT_SOLVER,
-    "init": None,
-    "fixed": None,
-    "bounds": None,
-    "cutoff": None,
-    "subsample": None,
-    "seed": 0,
-    "multistart": 0,
-    "max_steps": 200,
-    "rtol": None,
-    "atol": None,
-    "ftol": None,
-    "scan": True,
-    "precision": None,
-    "covariance": "sandwich",
-    "weighting": WEIGHTINGS[0],
-}
-COVARIANCES = ("sandwich", "gn")
-PRECISIONS = ("float32", "float64")
+#: data, the precision or not at all; see :class:`Settings`); they live with the options
+#: themselves, in :class:`brdffit.config.FitOptions`.
+FIT_DEFAULTS = CODE_DEFAULTS
 
 
 def default_precision() -> str:
@@ -73,11 +55,9 @@ def fit_options(options=None, **kwargs) -> dict:
     :class:`~brdffit.errors.UnknownNameError` for an unknown ``covariance``, ``precision`` or
     ``weighting`` (names in any case; returned as the canonical name).
     """
-    from ..config import check_fit_options
-
     if options is None:
         given = {}
-    elif hasattr(options, "fit_kwargs"):
+    elif isinstance(options, FitOptions):
         given = options.fit_kwargs()
     elif isinstance(options, Mapping):
         given = dict(options)
@@ -91,18 +71,7 @@ def fit_options(options=None, **kwargs) -> dict:
             f"brdffit.fit() got unknown option(s) {', '.join(unknown)}; valid options: "
             f"{', '.join(sorted(FIT_DEFAULTS))}, progress, throw"
         )
-    check_fit_options(given)
-    for key, valid in (("covariance", COVARIANCES), ("precision", PRECISIONS),
-                       ("weighting", WEIGHTINGS)):  # names ignore case: "GN" is "gn"
-        if canonical_name(given.get(key), valid) is not None:
-            given[key] = canonical_name(given[key], valid)
-    if given.get("covariance", "sandwich") not in COVARIANCES:
-        raise UnknownNameError("covariance", str(given["covariance"]), list(COVARIANCES))
-    if given.get("precision") not in (None, *PRECISIONS):
-        raise UnknownNameError("precision", str(given["precision"]), list(PRECISIONS))
-    if given.get("weighting", WEIGHTINGS[0]) not in WEIGHTINGS:
-        raise UnknownNameError("weighting", str(given["weighting"]), list(WEIGHTINGS))
-    return given
+    return canonical_choices(check_fit_options(given))
 
 
 @dataclasses.dataclass(frozen=True)

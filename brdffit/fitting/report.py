@@ -27,10 +27,23 @@ import math
 import numpy as np
 
 from ..metrics import METRICS, metric_text
-from .result import value_with_error
 
 #: Correlations listed by the reports: those at least this strong (absolute value).
 MIN_CORRELATION = 0.1
+
+
+def value_with_error(value: float, err: float) -> str:
+    """``value ± err`` with the error to two significant digits and the value to the same
+    decimal place (``0.08012 ± 0.00011``); ``value`` alone (6 significant digits) when the
+    error is not a positive finite number."""
+    if not (math.isfinite(err) and err > 0):
+        return f"{value:.6g}"
+    place = math.floor(math.log10(err)) - 1  # the error's second significant digit
+    if place >= 0:
+        return f"{round(value, -place):.0f} ± {round(err, -place):.0f}"
+    return f"{value:.{-place}f} ± {err:.{-place}f}"
+
+
 #: At most this many correlations are listed (all are in ``result.correlation``).
 MAX_LISTED = 10
 #: The one-line caveat printed under AIC and BIC.

@@ -4,15 +4,20 @@
 covariance (Gauss–Newton approximation at the optimum, in physical units), cost and error
 metrics, the solver's verdict (``success``, ``status``, ``message``, ``steps``), the scalars that
 ended at a bound, and timings. ``result.model(wi, wo)`` evaluates the fitted BRDF anywhere;
-``result.render_merl()`` fills a whole MERL grid with it. :meth:`FitResult.from_json` reads a
-path or JSON text back, every field checked (:mod:`brdffit.fitting.result_json`).
+:meth:`FitResult.from_json` reads a path or JSON text back, every field checked
+(:mod:`brdffit.fitting.result_json`).
 
 For people: ``summary()`` (a few lines), ``report()`` and the notebook's HTML view (lmfit's
 ``fit_report``: :mod:`brdffit.fitting.report`, with :attr:`FitResult.correlation`,
-:attr:`FitResult.aic`, :attr:`FitResult.bic`), and ``plot()``, the diagnostic figures as one
-matplotlib figure (:func:`brdffit.plots.plot_result`, imported when called, as ``export()``
-imports :mod:`brdffit.export`). The metrics' names and meanings are those of
+:attr:`FitResult.aic`, :attr:`FitResult.bic`). The metrics' names and meanings are those of
 :mod:`brdffit.metrics`.
+
+This is the fitting layer's record of what a fit produced: it imports nothing above the
+fitting layer. Rendering the fitted model on a MERL grid, exporting it to a renderer and
+plotting it are functions of the layers above that take a result
+(:func:`brdffit.export.render_merl`, :func:`brdffit.export.export`,
+:func:`brdffit.plots.plot_result`); the result :func:`brdffit.fit` returns,
+:class:`brdffit.FitResult` (:mod:`brdffit.api`), offers them as methods.
 """
 
 from __future__ import annotations
@@ -46,11 +51,6 @@ class FittedModel:
         return self.model.name
 
 
-def _scalar_or_list(a):
-    a = np.asarray(a, float)
-    return float(a) if a.ndim == 0 else [float(v) for v in a.ravel()]
-
-
 def json_safe(v):
     """NaN/inf become ``None`` (strict JSON); everything else passes through."""
     if isinstance(v, float) and not math.isfinite(v):
@@ -66,18 +66,6 @@ def _short(v) -> str:
     if isinstance(v, (list, tuple)):
         return "(" + ", ".join(f"{float(a):.4g}" for a in v) + ")"
     return f"{float(v):.4g}"
-
-
-def value_with_error(value: float, err: float) -> str:
-    """``value ± err`` with the error to two significant digits and the value to the same
-    decimal place (``0.08012 ± 0.00011``); ``value`` alone (6 significant digits) when the
-    error is not a positive finite number."""
-    if not (math.isfinite(err) and err > 0):
-        return f"{value:.6g}"
-    place = math.floor(math.log10(err)) - 1  # the error's second significant digit
-    if place >= 0:
-        return f"{round(value, -place):.0f} ± {round(err, -place):.0f}"
-    return f"{value:.{-place}f} ± {err:.{-place}f}"
 
 
 @dataclasses.dataclass
@@ -154,45 +142,6 @@ class FitResult:
     def model(self) -> FittedModel:
         """The fitted BRDF: ``result.model(wi, wo)`` gives RGB ``f_r`` ``(..., 3)``."""
         return FittedModel(get_model(self.model_name), {k: np.asarray(v) for k, v in self.params.items()})
-
-    def render_merl(self, name: str | None = None, shape=None):
-        """The fitted model on a whole MERL grid (cell corners), as a ``MERLTable``.
-
-        Cells below the horizon are missing, as in the database (``data_formats.merl.synthesize``);
-        write it with ``data_formats.merl.write_merl`` for a fitted ``.binary``.
-        """
-        from data_formats.merl import MERL_SHAPE, synthesize
-
-        from ..models.evaluate import evaluate_model
-
-        fitted = self.model
-        return synthesize(lambda wi, wo: evaluate_model(fitted.model, fitted.params, wi, wo),
-                          name=name or f"{self.model_name}-fit", shape=shape or MERL_SHAPE)
-
-    def export(self, to: str, *, approximate: bool = False, **options):
-        """The fitted material for a renderer: ``"mitsuba-dict"`` (what ``mitsuba.load_dict``
-        takes), ``"mitsuba-xml"`` (a ``<bsdf>`` element) or ``"gltf"`` (a glTF 2.0 document).
-
-        Delegates to :func:`brdffit.export.export_payload` (the parameter mapping and the
-        ``approximate`` option are documented in :mod:`brdffit.export`).
-        """
-        from ..export import export_payload
-
-        return export_payload(self, to, approximate=approximate, **options)
-
-    def plot(self, data=None, *, only=None):
-        """The diagnostic figures of this fit as one matplotlib ``Figure`` (shown inline in a
-        notebook): the image slice, the specular-peak curves, the directional albedo and the lit
-        spheres, measured beside fitted, the titles stating this fit's ``rmse_log``.
-
-        ``data`` is what was fitted; by default the file ``provenance`` names is read again
-        (a result fitted to data in memory needs them). ``only`` picks views by name
-        (``"slice"``, ``"peaks"``, ``"albedo"``, ``"spheres"``). Delegates to
-        :func:`brdffit.plots.plot_result`; ``brdffit.plots.diagnostics`` writes PNG files.
-        """
-        from ..plots import plot_result
-
-        return plot_result(self, data, only=only)
 
     # -- reporting ------------------------------------------------------------------------------
     def summary(self) -> str:

@@ -8,6 +8,7 @@ values reuse one compilation per model; memory stays bounded by the chunk size.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 
 import numpy as np
@@ -15,22 +16,23 @@ import numpy as np
 #: Directions evaluated per compiled call; the last chunk is padded to this size.
 CHUNK = 32768
 
-_JIT_CACHE: dict[int, tuple[object, object]] = {}
+
+@functools.lru_cache(maxsize=None)
+def _compiled(parts: tuple) -> tuple:
+    """``jax.jit`` of each function of ``parts``: one compile per model function and shape.
+
+    A pure function of the (hashable) model functions, memoised: a call gives what a fresh
+    ``jax.jit`` would, the memo only keeps JAX's compilations for the next call. One entry per
+    model function (the registered models, and those a caller builds)."""
+    import jax
+
+    return tuple(jax.jit(f) for f in parts)
 
 
 def _jitted(model):
-    """The compiled pieces of ``model``, cached per model function (one compile per model and
-    shape): ``(jit(fn),)``, or ``(jit(prepare), jit(per_pair), jit(combine))`` for a model with
-    ``stages``."""
-    import jax
-
-    key = id(model.fn)
-    hit = _JIT_CACHE.get(key)
-    if hit is None or hit[0] is not model.fn:
-        parts = model.stages or (model.fn,)
-        hit = (model.fn, tuple(jax.jit(f) for f in parts))
-        _JIT_CACHE[key] = hit
-    return hit[1]
+    """The compiled pieces of ``model``: ``(jit(fn),)``, or ``(jit(prepare), jit(per_pair),
+    jit(combine))`` for a model with ``stages``."""
+    return _compiled(tuple(model.stages or (model.fn,)))
 
 
 def evaluate_model(model, params: Mapping | None, wi, wo, *, chunk: int = CHUNK) -> np.ndarray:

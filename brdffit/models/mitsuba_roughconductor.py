@@ -39,7 +39,7 @@ from ..terms.fresnel import conductor
 from ..terms.masking import G2_separable
 from ..terms.microfacet import microfacet_specular
 from ..terms.ndf import GGX, Beckmann
-from .registry import _REGISTRY, Model, Param, register, register_factory
+from .registry import Model, Param, available_models, get_model, register, register_factory
 from .starts import rough_conductor
 
 #: Physical ranges of the optical constants fitted per channel. Metals in the visible have
@@ -112,8 +112,8 @@ def roughconductor_model(distribution: str = "ggx", anisotropic: bool = False, f
     if fresnel not in FRESNEL_FORMS:
         raise ValueError(f"fresnel must be one of {FRESNEL_FORMS}, got {fresnel!r}")
     name = canonical_name(distribution, anisotropic, fresnel)
-    if name in _REGISTRY:
-        return _REGISTRY[name]
+    if name in available_models():
+        return get_model(name)
     ndf = "GGX (RTR 9.53)" if distribution == "ggx" else "Beckmann (RTR 9.52), rational Smith G1 (RTR 9.39)"
     form = "complex-IOR conductor Fresnel" if fresnel == "ior" else "specular_reflectance tint, F = 1"
     return register(Model(

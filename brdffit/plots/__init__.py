@@ -26,7 +26,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ._eval import evaluate_model, measured_lookup
-from ._style import InlineFigure, new_figure, save_png
+from ._style import InlineFigure, log_levels, log_tonemap, new_figure, save_png
 from .albedo import directional_albedo, measured_albedo, model_albedo, plot_albedo
 from .albedo import figure_size as _albedo_size
 from .error import format_error, model_error, result_error, rms_log_error
@@ -220,6 +220,8 @@ __all__ = [
     "evaluate_model",
     "figure_paths",
     "format_error",
+    "log_levels",
+    "log_tonemap",
     "measured_albedo",
     "measured_lookup",
     "model_albedo",

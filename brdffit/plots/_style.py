@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from data_formats._atomic import atomic_write
+from data_formats.files import atomic_write
 
 #: Colour of cells or pixels without a measurement.
 MISSING_RGB = (0.55, 0.0, 0.55)

@@ -1,8 +1,8 @@
 """Posteriors of fitted BRDF parameters with emcee: ``sample_posterior(table, fit_or_model)``.
 
-Public surface: :func:`sample_posterior`, :class:`PosteriorResult`, the prior objects
-(:class:`Uniform`, :class:`LogUniform`, :class:`Normal`), :class:`Diagnostics` and
-:class:`ChainTooShortWarning`. The likelihood and its noise model are documented in
+Public surface: :func:`sample_posterior` and its :class:`McmcOptions`, :class:`PosteriorResult`,
+the prior objects (:class:`Uniform`, :class:`LogUniform`, :class:`Normal`), :class:`Diagnostics`
+and :class:`ChainTooShortWarning`. The likelihood and its noise model are documented in
 :mod:`brdffit.posterior.likelihood`. Names load their modules on first use (PEP 562), so the
 command line's ``--help`` does not import emcee and JAX.
 """
@@ -15,6 +15,7 @@ from .defaults import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_WALKERS
 _LAZY = {
     "DEFAULT_SUBSAMPLE": ".sampler",
     "sample_posterior": ".sampler",
+    "McmcOptions": ".sampler",
     "ChainTooShortWarning": ".diagnostics",
     "Diagnostics": ".diagnostics",
     "LogUniform": ".priors",

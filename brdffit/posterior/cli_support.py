@@ -66,8 +66,9 @@ def output_paths(args) -> dict:
     return {"chain": chain, "corner": corner}
 
 
-def _kwargs(args, options) -> dict:
-    kw = {"seed": options.seed or 0, "cutoff": options.cutoff, "bounds": options.bounds or None}
+def _mcmc_options(args, options) -> dict:
+    """The keywords of :class:`~brdffit.posterior.sampler.McmcOptions` the flags set."""
+    kw = {"seed": options.seed or 0}
     for flag, key in (("walkers", "nwalkers"), ("steps", "nsteps"), ("burn", "burn"),
                       ("noise", "noise"), ("mcmc_subsample", "subsample")):
         if getattr(args, flag, None) is not None:
@@ -84,12 +85,14 @@ def run_mcmc(data, fit_result, args, options, write) -> tuple:
     lists the paths written; ``warnings`` the diagnostics' messages (also in the summary).
     """
     from .diagnostics import ChainTooShortWarning
-    from .sampler import sample_posterior
+    from ..config import FitOptions
+    from .sampler import McmcOptions, sample_posterior
 
     paths = output_paths(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ChainTooShortWarning)
-        post = sample_posterior(data, fit_result, **_kwargs(args, options))
+        fit = FitOptions(cutoff=options.cutoff, bounds=options.bounds)
+        post = sample_posterior(data, fit_result, fit, McmcOptions(**_mcmc_options(args, options)))
     messages = [str(w.message) for w in caught if issubclass(w.category, ChainTooShortWarning)]
     files = []
     if paths["chain"]:

@@ -16,6 +16,7 @@ so its posterior is *wider* than a full-table one (by about ``sqrt(N/n)``): pass
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import emcee
@@ -23,6 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..config import FitOptions, check_fit_options
 from ..errors import ConfigError
 from ..fitting import WEIGHTINGS, FitResult, Subsample, check_enough, default_precision, select
 from ..fitting import fit as run_fit
@@ -219,17 +221,59 @@ def _assemble(result, post, sel, sampler, noise, run, timings):
     )
 
 
-def sample_posterior(
-    table, result_or_model, *, nwalkers: int = DEFAULT_WALKERS, nsteps: int = DEFAULT_STEPS,
-    burn: int = DEFAULT_BURN, thin: int = 1, seed: int = 0, noise=None,
-    subsample=DEFAULT_SUBSAMPLE, prior=None, loss=None, cutoff=None, bounds=None,
-    fixed=None, init=None, chain_path=None, moves=None, progress=None, weighting=None,
-) -> PosteriorResult:
+@dataclasses.dataclass(frozen=True)
+class McmcOptions:
+    """The sampler's options of :func:`sample_posterior` (each described there), with their
+    defaults. ``seed`` and ``subsample`` also choose the cells of a fit made from a model name,
+    so that the walkers start at the mode of the likelihood they sample."""
+
+    nwalkers: int = DEFAULT_WALKERS
+    nsteps: int = DEFAULT_STEPS
+    burn: int = DEFAULT_BURN
+    thin: int = 1
+    seed: int = 0
+    noise: object = None
+    subsample: object = DEFAULT_SUBSAMPLE
+    prior: object = None
+    chain_path: object = None
+    moves: object = None
+
+
+#: The fit options the posterior uses (the others do not change its likelihood).
+POSTERIOR_FIT_OPTIONS = ("loss", "cutoff", "bounds", "fixed", "init", "weighting")
+
+
+def _split_options(options, mcmc, kwargs) -> tuple[FitOptions, McmcOptions]:
+    """``(fit options, McmcOptions)`` from the arguments of :func:`sample_posterior`."""
+    mine = {f.name for f in dataclasses.fields(McmcOptions)}
+    unknown = sorted(set(kwargs) - mine - set(POSTERIOR_FIT_OPTIONS))
+    if unknown:
+        raise TypeError(f"sample_posterior() got unknown option(s) {', '.join(unknown)}; valid "
+                        f"options: {', '.join(sorted(mine | set(POSTERIOR_FIT_OPTIONS)))}")
+    if options is None:
+        fit = FitOptions()
+    elif isinstance(options, FitOptions):
+        fit = options
+    else:
+        fit = FitOptions(**dict(options))
+    fit = dataclasses.replace(fit, **{k: v for k, v in kwargs.items() if k not in mine})
+    mcmc = dataclasses.replace(mcmc or McmcOptions(), **{k: v for k, v in kwargs.items()
+                                                        if k in mine})
+    return fit, mcmc
+
+
+def sample_posterior(table, result_or_model, options=None, mcmc: McmcOptions | None = None, *,
+                     progress=None, **kwargs) -> PosteriorResult:
     """Sample the posterior of a model's free parameters on ``table`` with emcee.
 
     Runs inside ``jax.enable_x64(True)`` (float64 for the call; ``jax.config`` is left as it
     was), with the persistent compilation cache on (:func:`brdffit.compilation_cache.ensure`),
     as :func:`brdffit.fit` does.
+
+    The options come in two objects: ``options``, the fit's (a
+    :class:`~brdffit.config.FitOptions` or a mapping: ``loss``, ``cutoff``, ``bounds``,
+    ``fixed``, ``init``, ``weighting``), and ``mcmc``, the sampler's (:class:`McmcOptions`);
+    keyword arguments override either, by name.
 
     Args:
         table: a path (``str`` or ``PathLike``: any format of ``brdffit.io.READERS``, read by
@@ -263,24 +307,26 @@ def sample_posterior(
     from ..api import load
     from ..progress import resolve
 
+    fit, mcmc = _split_options(options, mcmc, kwargs)
+    if isinstance(result_or_model, FitResult):  # no fit here to check the fit options
+        check_fit_options(fit.fit_kwargs())
     table, _path = load(table)
     compilation_cache.ensure()
     callback, bar = resolve(progress, desc="posterior")
     try:
         with jax.enable_x64(True):
-            return _sample(table, result_or_model, nwalkers, nsteps, burn, thin, seed, noise,
-                           subsample, prior, loss, cutoff, bounds, fixed, init, chain_path,
-                           moves, callback, weighting)
+            return _sample(table, result_or_model, fit, mcmc, callback)
     finally:
         if bar is not None:
             bar.close()
 
 
-def _sample(table, result_or_model, nwalkers, nsteps, burn, thin, seed, noise, subsample,
-            prior, loss, cutoff, bounds, fixed, init, chain_path, moves, progress, weighting):
+def _sample(table, result_or_model, fit: FitOptions, mcmc: McmcOptions, progress):
     samples = table.to_samples()
+    weighting = fit.weighting
     if weighting is None:
         weighting = _weighting_of(result_or_model)
+    noise = mcmc.noise
     if noise is None:
         noise = "measured" if getattr(samples, "sigma", None) is not None else "fixed"
     if noise == "measured" and getattr(samples, "sigma", None) is None:
@@ -288,22 +334,25 @@ def _sample(table, result_or_model, nwalkers, nsteps, burn, thin, seed, noise, s
             "noise='measured' needs measurement uncertainties: a sample list with a sigma "
             "column (or sigma_r, sigma_g, sigma_b); use noise='fixed' or 'sampled' otherwise"
         )
+    loss, cutoff, bounds = fit.loss, fit.cutoff, fit.bounds or None
+    subsample, seed = mcmc.subsample, mcmc.seed
     fit_kwargs = {"cutoff": cutoff, "subsample": subsample, "seed": seed, "bounds": bounds,
-                  "fixed": fixed, "init": init, "weighting": weighting}
+                  "fixed": fit.fixed or None, "init": fit.init or None, "weighting": weighting}
     result, t_fit = _least_squares(table, result_or_model, loss, fit_kwargs)
     post, sel, center, scale, noise_info = _posterior(
         result, samples, loss=loss, cutoff=cutoff, subsample=subsample, seed=seed,
-        bounds=bounds, noise=noise, prior=prior, weighting=weighting,
+        bounds=bounds, noise=noise, prior=mcmc.prior, weighting=weighting,
     )
+    nwalkers, nsteps, burn, thin = mcmc.nwalkers, mcmc.nsteps, mcmc.burn, mcmc.thin
     _check_run(nwalkers, nsteps, burn, thin, len(center))
-    sampler, t_compile, t_sample = _run_emcee(post, center, scale, int(nwalkers), int(nsteps), seed,
-                                              default_moves() if moves is None else moves,
-                                              progress)
+    sampler, t_compile, t_sample = _run_emcee(
+        post, center, scale, int(nwalkers), int(nsteps), seed,
+        default_moves() if mcmc.moves is None else mcmc.moves, progress)
     run = {"nwalkers": int(nwalkers), "nsteps": int(nsteps), "burn": int(burn), "thin": int(thin),
            "seed": int(seed), "loss": loss, "cutoff": cutoff, "subsample": repr(subsample),
            "weighting": weighting}
     out = _assemble(result, post, sel, sampler, noise_info,
                     run, {"fit": t_fit, "compile": t_compile, "sample": t_sample})
-    if chain_path is not None:
-        out.save_chain(chain_path)
+    if mcmc.chain_path is not None:
+        out.save_chain(mcmc.chain_path)
     return out

@@ -121,9 +121,3 @@ def cos2_sin2_phi(w):
 def chi_plus(x):
     """Heaviside ``chi^+(x)``: 1 for ``x > 0``, else 0 (RTR eq. 9.21)."""
     return (x > 0).astype(jnp.result_type(x, jnp.float32))
-
-
-def spherical_direction(theta, phi):
-    """Unit vector at polar angle ``theta`` from ``z`` and azimuth ``phi`` from ``x``."""
-    st = jnp.sin(theta)
-    return jnp.stack([st * jnp.cos(phi), st * jnp.sin(phi), jnp.cos(theta)], axis=-1)

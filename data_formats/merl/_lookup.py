@@ -1,18 +1,19 @@
-"""Nearest-cell and trilinear lookups of a table, in chunks on a few threads."""
+"""Nearest-cell and trilinear lookups of a table, in chunks on a few threads.
+
+``table`` below is a :class:`~data_formats.merl.MERLTable` (any object with its ``rgb``,
+``valid``, ``shape`` and ``gather_grid()``); this module does not import the type, which imports
+these functions.
+"""
 
 from __future__ import annotations
 
 import concurrent.futures
 import os
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..rusinkiewicz import half_diff_from_dirs
 from ._grid import clamped_floor, grid_coords, merl_index
-
-if TYPE_CHECKING:
-    from ._table import MERLTable
 
 #: Lookups run in chunks of this many pairs so that every temporary stays in cache.
 _CHUNK = 32768
@@ -86,18 +87,18 @@ def _nearest_kernel(prepared, shape, th, td, pd):
     return out
 
 
-def _nearest_prepared(table: MERLTable):
+def _nearest_prepared(table):
     return table.rgb.reshape(-1, 3), table.valid.reshape(-1)
 
 
-def lookup_nearest_angles(table: MERLTable, theta_h, theta_d, phi_d):
+def lookup_nearest_angles(table, theta_h, theta_d, phi_d):
     """BRDF ``(..., 3)`` of the cell :func:`merl_index` picks for broadcast angles; NaN where
     that cell is missing or an angle is NaN."""
     return _by_angles(_nearest_kernel, _nearest_prepared(table), table.shape,
                       theta_h, theta_d, phi_d)
 
 
-def lookup_nearest(table: MERLTable, wi, wo):
+def lookup_nearest(table, wi, wo):
     """The database reader's lookup (``lookup_brdf_val``): the BRDF of the cell holding the
     pair's half/difference angles, for direction pairs ``(..., 3)``; returns ``(..., 3)``.
 
@@ -120,28 +121,22 @@ def _axis_weights(x, n: int):
     return lo, np.minimum(lo + 1, n - 1), np.clip(x - lo, 0.0, 1.0)
 
 
-def _interp_grid(table: MERLTable):
-    """Per-table gather array for the linear lookup, built once and cached on the table.
+def gather_grid(rgb, valid):
+    """The gather array of the linear lookup, for a table's ``rgb`` and ``valid`` arrays.
 
     ``(n_th * n_td * (n_pd + 1), 4)`` float64 rows ``(r, g, b, valid)`` (rgb zeroed where
     missing) in file order, with ``phi_d`` cell 0 repeated at ``k = n_pd`` (the periodic wrap),
     so a corner is one 32-byte row and ``k + 1`` never needs a modulo. Costs 1.35x the table's
-    rgb in memory (47 MB for the database grid). The cache is keyed by the identity of
-    ``table.rgb`` and ``table.valid``: replacing them is seen, editing them in place is not
-    (the arrays of tables from ``read_merl``, ``from_rgb`` and ``synthesize`` are read-only).
+    rgb in memory (47 MB for the database grid). A pure function: the table keeps the array it
+    built (:meth:`MERLTable.gather_grid`).
     """
-    cached = table.__dict__.get("_interp_cache")
-    if cached is not None and cached[0] is table.rgb and cached[1] is table.valid:
-        return cached[2]
-    n_th, n_td, n_pd = table.shape
+    n_th, n_td, n_pd = valid.shape
     grid = np.empty((n_th, n_td, n_pd + 1, 4))
-    grid[:, :, :n_pd, :3] = table.rgb
-    grid[:, :, :n_pd, 3] = table.valid
-    grid[:, :, :n_pd, :3][~table.valid] = 0.0
+    grid[:, :, :n_pd, :3] = rgb
+    grid[:, :, :n_pd, 3] = valid
+    grid[:, :, :n_pd, :3][~valid] = 0.0
     grid[:, :, n_pd] = grid[:, :, 0]
-    grid = grid.reshape(-1, 4)
-    table._interp_cache = (table.rgb, table.valid, grid)
-    return grid
+    return grid.reshape(-1, 4)
 
 
 def _linear_kernel(grid, shape, th, td, pd):
@@ -168,7 +163,7 @@ def _linear_kernel(grid, shape, th, td, pd):
     return out
 
 
-def lookup_linear_angles(table: MERLTable, theta_h, theta_d, phi_d):
+def lookup_linear_angles(table, theta_h, theta_d, phi_d):
     """Trilinear interpolation ``(..., 3)`` in the warped coordinates ``(u, v, w)``.
 
     With ``u = sqrt(theta_h/(pi/2)) n_th``, ``v = theta_d/(pi/2) n_td``, ``w = phi_d/pi n_pd``
@@ -183,9 +178,9 @@ def lookup_linear_angles(table: MERLTable, theta_h, theta_d, phi_d):
     weighted mean of the valid corners among the eight; NaN when no corner with non-zero weight
     is valid (in particular exactly at a missing cell's corner), or where an angle is NaN.
     """
-    return _by_angles(_linear_kernel, _interp_grid(table), table.shape, theta_h, theta_d, phi_d)
+    return _by_angles(_linear_kernel, table.gather_grid(), table.shape, theta_h, theta_d, phi_d)
 
 
-def lookup_linear(table: MERLTable, wi, wo):
+def lookup_linear(table, wi, wo):
     """Trilinear lookup of direction pairs ``(..., 3)``; see :func:`lookup_linear_angles`."""
-    return _by_dirs(_linear_kernel, _interp_grid(table), table.shape, wi, wo)
+    return _by_dirs(_linear_kernel, table.gather_grid(), table.shape, wi, wo)

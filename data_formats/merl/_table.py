@@ -9,7 +9,7 @@ import numpy as np
 
 from ..samples import SampleSet
 from ._grid import above_horizon, cell_angles, cell_directions, shape_key, theta_h_weights
-from ._lookup import lookup_linear, lookup_nearest
+from ._lookup import gather_grid, lookup_linear, lookup_nearest
 from ._scale import CHANNELS, snap_to_file
 
 
@@ -51,6 +51,16 @@ class MERLTable:
                 f"MERLTable.valid must be a bool array of shape {rgb.shape[:3]}, got "
                 f"{getattr(valid, 'dtype', type(valid).__name__)} {getattr(valid, 'shape', '')}"
             )
+        self._grid = None  # (rgb, valid, gather grid): see gather_grid
+
+    def gather_grid(self) -> np.ndarray:
+        """The linear lookup's gather array (:func:`~data_formats.merl._lookup.gather_grid`),
+        built at the first linear lookup and kept by the table. It is rebuilt when ``rgb`` or
+        ``valid`` is replaced by another array (editing one in place is not seen: the arrays of
+        tables from ``read_merl``, ``from_rgb`` and ``synthesize`` are read-only)."""
+        if self._grid is None or self._grid[0] is not self.rgb or self._grid[1] is not self.valid:
+            self._grid = (self.rgb, self.valid, gather_grid(self.rgb, self.valid))
+        return self._grid[2]
 
     @classmethod
     def from_rgb(cls, rgb, valid=None, name: str = "") -> "MERLTable":

@@ -113,10 +113,6 @@ class NDFDistribution(Distribution):
         return self.is_isotropic
 
 
-def _tan2(h):
-    return safe_div(h[..., 0] ** 2 + h[..., 1] ** 2, h[..., 2] ** 2, fill=BIG)
-
-
 class AnisotropicGaussian(Distribution):
     r"""APS 2000 eq. 34, with ``c = 1``:
 

@@ -93,12 +93,6 @@ def _clip_parts(A, B):  # noqa: N803
     return S, jnp.arctan2(jnp.where(ok, S, 1.0), jnp.where(ok, -B, 0.0))
 
 
-def azimuthal_clip_integral(A, B):
-    r"""``∫₀^{2π} (A cos φ + B)⁺ dφ`` for ``A ≥ 0``, ``B ≥ 0``, in closed form (finite gradients)."""
-    S, ang = _clip_parts(A, B)
-    return 2.0 * (B * ang + S)
-
-
 def _theta_m_nodes(y, scale):
     """``(sin θm, cos θm, dθm/dy)`` for ``tan θm = scale · sinh(y)``."""
     t = scale * jnp.sinh(y)
