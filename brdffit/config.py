@@ -100,19 +100,22 @@ def _table_option(flag, help, metavar="NAME=VALUE"):
         want="a table", table="", flag=flag, metavar=metavar, help=help)})
 
 
+#: The registered losses' and solvers' names, in registry order: :data:`brdffit.fitting.LOSSES`
+#: and :data:`brdffit.fitting.SOLVERS` are built on them, so that the ``--loss`` and ``--solver``
+#: help lists the registry without importing JAX.
+LOSS_NAMES = ("linear", "cosine", "log", "relative")
+SOLVER_NAMES = ("lm", "gauss-newton", "dogleg")
+_LOSS, _SOLVER = "log", "lm"  # the defaults (brdffit.fitting's DEFAULT_LOSS, DEFAULT_SOLVER)
+
+
+def _one_of(names, default) -> str:
+    """``"lm (default), gauss-newton or dogleg"``."""
+    words = [f"{n} (default)" if n == default else n for n in names]
+    return f"{', '.join(words[:-1])} or {words[-1]}" if len(words) > 1 else words[0]
+
+
 _UNIT = dict(kind=float, low=0.0, high=1.0, low_in=False, want="a number in (0, 1]")
 _TOL = "step tolerance of the stall test (default 1e-14 in float64, 1e-6 in float32)"
-
-#: Ranges of the posterior-sampling options (``brdffit fit --mcmc``), checked the same way.
-#: The chain holds ``walkers * steps * parameters`` doubles: 10^4 x 10^5 x 10 would be 80 GB,
-#: so the product is bounded too (:data:`MAX_CHAIN_VALUES`).
-POSTERIOR_OPTION_RANGES = {
-    "walkers": (True, 2, 10_000, True, "an even integer in [2, 10000]"),
-    "steps": (True, 1, 1_000_000, True, "an integer in [1, 1000000]"),
-    "burn": (True, 0, 1_000_000, True, "an integer in [0, 1000000]"),
-    "mcmc_subsample": (True, 1, 2**24, True, "an integer in [1, 16777216]"),
-}
-MAX_CHAIN_VALUES = 10**8
 
 #: The narrowest ``[bounds]`` interval, relative to ``max(1, |bound|)``; narrower ones cannot
 #: be fitted in float64 (the Jacobian degenerates): fix the parameter instead.
@@ -149,10 +152,11 @@ def check_fit_options(options: Mapping, label=None, ranges=None) -> Mapping:
 
     ``options`` maps option names (``rtol``, ``multistart``, ...) to values; ``None`` and names
     without a range are ignored. The ranges are :data:`FIT_OPTION_RANGES` plus ``subsample``
-    (a count in ``[1, 2^24]`` or a fraction in ``(0, 1]``), or ``ranges`` (e.g.
-    :data:`POSTERIOR_OPTION_RANGES`) in their place: every value must be finite and of
-    the right kind (an integer where a count is meant; ``bool`` is not a number). ``label(key)``
-    says how the message names an option (``"--multistart"`` on the command line). Raises
+    (a count in ``[1, 2^24]`` or a fraction in ``(0, 1]``), or ``ranges`` (the ``--mcmc``
+    flags': :data:`brdffit.posterior.options.FLAG_RANGES`) in their place: every value must be
+    finite and of the right kind (an integer where a count is meant; ``bool`` is not a number).
+    ``label(key)`` says how the message names an option (``"--multistart"`` on the command
+    line). Raises
     :class:`~brdffit.errors.ConfigError` ("'multistart' must be an integer in [0, 1000], got
     100000000"); returns ``options`` unchanged.
     """
@@ -195,11 +199,11 @@ class FitOptions:
 
     model: str | None = _option(kind=str, want="a model name", default=None)
     loss: str | None = _option(
-        kind=str, want="a loss name", default="log", flag="--loss",
-        help="residual weighting: linear, cosine, log, relative (+huber)")
+        kind=str, want="a loss name", default=_LOSS, flag="--loss",
+        help=f"residual weighting: {_one_of(LOSS_NAMES, _LOSS)} (+huber)")
     solver: str | None = _option(
-        kind=str, want="a solver name", default="lm", table="solver", key="name",
-        flag="--solver", help="lm (Levenberg-Marquardt, default), gauss-newton or dogleg")
+        kind=str, want="a solver name", default=_SOLVER, table="solver", key="name",
+        flag="--solver", help=_one_of(SOLVER_NAMES, _SOLVER))
     init: Mapping = _table_option("--init", "start a parameter at a value; repeatable")
     fixed: Mapping = _table_option(
         "--fix", "hold a parameter at a value (f0=0.04 or f0=0.9,0.6,0.3); repeatable")

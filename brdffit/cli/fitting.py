@@ -155,11 +155,13 @@ _TABLE_PARSERS = {"init": parse_assignments, "fixed": parse_assignments, "bounds
 
 
 def _check_mcmc_ranges(args) -> None:
-    from ..config import MAX_CHAIN_VALUES, POSTERIOR_OPTION_RANGES, check_fit_options
+    from ..config import check_fit_options
+    from ..posterior.options import FLAG_RANGES, MAX_CHAIN_VALUES, MCMC_OPTIONS
 
-    values = {k: getattr(args, k, None) for k in POSTERIOR_OPTION_RANGES}
-    check_fit_options(values, lambda key: f"--{key.replace('_', '-')}", POSTERIOR_OPTION_RANGES)
-    walkers, steps = values["walkers"] or 32, values["steps"] or 1
+    values = {k: getattr(args, k, None) for k in FLAG_RANGES}
+    check_fit_options(values, lambda key: f"--{key.replace('_', '-')}", FLAG_RANGES)
+    walkers = values["walkers"] or MCMC_OPTIONS["nwalkers"].default
+    steps = values["steps"] or 1
     if walkers * steps * 64 > MAX_CHAIN_VALUES:  # 64: a generous number of parameters
         raise UsageError(f"--walkers {walkers} x --steps {steps} is a chain of more than "
                          f"{MAX_CHAIN_VALUES:,} values; use fewer walkers or steps")

@@ -52,6 +52,7 @@ from collections.abc import Callable
 import jax.numpy as jnp
 import numpy as np
 
+from ..config import LOSS_NAMES, OPTIONS
 from ..errors import ConfigError, UnknownNameError, canonical_name
 
 #: Values below this are not used as the denominator of the relative loss.
@@ -126,18 +127,21 @@ class Loss:
         return r if self.huber is None else huber_residual(r, self.huber)
 
 
+#: The losses by name: :data:`brdffit.config.LOSS_NAMES` names them, in this order (so that the
+#: command line's help lists them without importing JAX).
 LOSSES: dict[str, Loss] = {
-    loss.name: loss
-    for loss in (
-        Loss("linear", _identity, description="ρ̂ - ρ (unweighted)"),
-        Loss("cosine", _cosine, description="(ρ̂ - ρ) cosθi cosθo"),
-        Loss("log", _log, description="log(1 + ρ̂ cosθi) - log(1 + ρ cosθi)"),
-        Loss("relative", _identity, _relative_weight, description="(ρ̂ - ρ) / max(ρ, 1e-3)"),
-    )
+    name: Loss(name, transform, weight, description=description)
+    for name, (transform, weight, description) in zip(LOSS_NAMES, (
+        (_identity, _unit_weight, "ρ̂ - ρ (unweighted)"),
+        (_cosine, _unit_weight, "(ρ̂ - ρ) cosθi cosθo"),
+        (_log, _unit_weight, "log(1 + ρ̂ cosθi) - log(1 + ρ cosθi)"),
+        (_identity, _relative_weight, "(ρ̂ - ρ) / max(ρ, 1e-3)"),
+    ), strict=True)
 }
 
-#: The loss :func:`brdffit.fit` uses unless told otherwise (see the module docstring for why).
-DEFAULT_LOSS = "log"
+#: The loss :func:`brdffit.fit` uses unless told otherwise (see the module docstring for why):
+#: the default of :class:`brdffit.config.FitOptions`.
+DEFAULT_LOSS = OPTIONS["loss"].default
 
 
 _ROBUST = re.compile(r"^huber(?:\((?P<delta>[^()]+)\))?$")

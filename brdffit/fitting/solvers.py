@@ -50,16 +50,18 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from ..config import OPTIONS, SOLVER_NAMES
 from ..errors import UnknownNameError, canonical_name
 from .transforms import held_on_bounds
 
-SOLVERS = {
-    "lm": optx.LevenbergMarquardt,
-    "gauss-newton": optx.GaussNewton,
-    "dogleg": optx.Dogleg,
-}
+#: The solvers by name: :data:`brdffit.config.SOLVER_NAMES` names them, in this order (so that the
+#: command line's help lists them without importing JAX).
+SOLVERS = dict(zip(SOLVER_NAMES, (optx.LevenbergMarquardt, optx.GaussNewton, optx.Dogleg),
+                   strict=True))
 
-DEFAULT_SOLVER = "lm"
+#: The solver :func:`brdffit.fit` uses unless told otherwise: the default of
+#: :class:`brdffit.config.FitOptions`.
+DEFAULT_SOLVER = OPTIONS["solver"].default
 
 #: First trust-region step size ``1/λ`` of ``lm``: with Marquardt's scaling, ``λ = 1`` would halve
 #: the first Gauss–Newton steps; ``λ = 0.01`` starts close to Gauss–Newton and lets rejections

@@ -15,7 +15,7 @@ from .defaults import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_WALKERS
 _LAZY = {
     "DEFAULT_SUBSAMPLE": ".sampler",
     "sample_posterior": ".sampler",
-    "McmcOptions": ".sampler",
+    "McmcOptions": ".options",
     "ChainTooShortWarning": ".diagnostics",
     "Diagnostics": ".diagnostics",
     "LogUniform": ".priors",

@@ -19,31 +19,25 @@ import warnings
 from pathlib import Path
 
 from ..errors import ConfigError
-from .defaults import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_WALKERS
+from .defaults import DEFAULT_BURN
+from .options import FLAG_KEYS, MCMC_OPTIONS
 
-
-_ONLY_WITH_MCMC = ("walkers", "steps", "burn", "noise", "mcmc_subsample", "chain")
+#: The flags that only apply with ``--mcmc`` (argparse names).
+_ONLY_WITH_MCMC = (*FLAG_KEYS, "chain")
 
 
 def add_arguments(parser) -> None:
-    """The ``--mcmc`` flags of ``brdffit fit``."""
+    """The ``--mcmc`` flags of ``brdffit fit``: ``--mcmc``, ``--chain`` and one flag per
+    :class:`~.options.McmcOptions` field that has one (its metadata's flag, metavar, help)."""
     g = parser.add_argument_group("posterior sampling (emcee)")
     g.add_argument("--mcmc", action="store_true",
                    help="after the fit, sample the posterior of the free parameters with emcee "
                    "(percentiles in the summary and --out, chain next to --out, corner plot "
                    "next to --plot)")
-    g.add_argument("--walkers", type=int, metavar="N",
-                   help=f"emcee walkers (default {DEFAULT_WALKERS}; even, >= 2 x free parameters)")
-    g.add_argument("--steps", type=int, metavar="N",
-                   help=f"steps per walker (default {DEFAULT_STEPS})")
-    g.add_argument("--burn", type=int, metavar="N",
-                   help=f"burn-in steps dropped (default {DEFAULT_BURN}, or steps/5 if smaller)")
-    g.add_argument("--noise", choices=("fixed", "sampled", "measured"), type=str.lower,
-                   help="noise scale: fixed at the least-squares estimate, sampled, or measured "
-                   "(the sample list's sigma columns); default measured when the input has "
-                   "sigma columns, else fixed")
-    g.add_argument("--mcmc-subsample", type=int, metavar="N",
-                   help="cells the likelihood uses (default 2000, stratified in θh)")
+    for dest, key in FLAG_KEYS.items():
+        o = MCMC_OPTIONS[key]
+        kind = {"type": str.lower, "choices": o.choices} if o.choices else {"type": o.kind}
+        g.add_argument(o.flag, dest=dest, metavar=o.metavar, help=o.help, **kind)
     g.add_argument("--chain", metavar="CHAIN.npz", help="where to write the chain (NPZ)")
 
 
@@ -67,12 +61,11 @@ def output_paths(args) -> dict:
 
 
 def _mcmc_options(args, options) -> dict:
-    """The keywords of :class:`~brdffit.posterior.sampler.McmcOptions` the flags set."""
+    """The keywords of :class:`~.options.McmcOptions` the flags set."""
     kw = {"seed": options.seed or 0}
-    for flag, key in (("walkers", "nwalkers"), ("steps", "nsteps"), ("burn", "burn"),
-                      ("noise", "noise"), ("mcmc_subsample", "subsample")):
-        if getattr(args, flag, None) is not None:
-            kw[key] = getattr(args, flag)
+    for dest, key in FLAG_KEYS.items():
+        if getattr(args, dest, None) is not None:
+            kw[key] = getattr(args, dest)
     if "nsteps" in kw and "burn" not in kw:
         kw["burn"] = min(DEFAULT_BURN, kw["nsteps"] // 5)
     return kw
@@ -86,7 +79,8 @@ def run_mcmc(data, fit_result, args, options, write) -> tuple:
     """
     from .diagnostics import ChainTooShortWarning
     from ..config import FitOptions
-    from .sampler import McmcOptions, sample_posterior
+    from .options import McmcOptions
+    from .sampler import sample_posterior
 
     paths = output_paths(args)
     with warnings.catch_warnings(record=True) as caught:

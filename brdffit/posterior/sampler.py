@@ -8,8 +8,8 @@ small ball around the optimum → ``emcee.EnsembleSampler(vectorize=True)`` → 
 Defaults (chosen so a default ``ggx`` run, fit included, stays well under a minute on a
 2-core CPU; ``benchmarks/bench_posterior.py`` measures it): a stratified subsample of
 :data:`DEFAULT_SUBSAMPLE` cells (one per ``θh`` stratum, so the specular peak is always
-represented), :data:`DEFAULT_WALKERS` walkers, :data:`DEFAULT_STEPS` steps of which
-:data:`DEFAULT_BURN` are burn-in. A subsample carries less information than the whole table,
+represented), and the walkers, steps and burn-in of :class:`~.options.McmcOptions` (from
+:mod:`.defaults`). A subsample carries less information than the whole table,
 so its posterior is *wider* than a full-table one (by about ``sqrt(N/n)``): pass
 ``subsample=None`` for all cells, at a cost proportional to the cell count.
 """
@@ -29,7 +29,7 @@ from ..errors import ConfigError
 from ..fitting import WEIGHTINGS, FitResult, Subsample, check_enough, default_precision, select
 from ..fitting import fit as run_fit
 from ..models.registry import get_model
-from .defaults import DEFAULT_BURN, DEFAULT_STEPS, DEFAULT_SUBSAMPLE_CELLS, DEFAULT_WALKERS
+from .defaults import DEFAULT_SUBSAMPLE_CELLS
 from .diagnostics import check, diagnose
 from .likelihood import (
     LogPosterior,
@@ -40,6 +40,7 @@ from .likelihood import (
 )
 from .priors import build_prior
 from .from_fit import loss_of, problem_from
+from .options import McmcOptions
 from .result import PERCENTILES, PosteriorResult
 
 DEFAULT_SUBSAMPLE = Subsample(DEFAULT_SUBSAMPLE_CELLS, "stratified")
@@ -219,24 +220,6 @@ def _assemble(result, post, sel, sampler, noise, run, timings):
                   "n_total": sel.n_total},
         wall_time=sum(timings.values()), timings=timings,
     )
-
-
-@dataclasses.dataclass(frozen=True)
-class McmcOptions:
-    """The sampler's options of :func:`sample_posterior` (each described there), with their
-    defaults. ``seed`` and ``subsample`` also choose the cells of a fit made from a model name,
-    so that the walkers start at the mode of the likelihood they sample."""
-
-    nwalkers: int = DEFAULT_WALKERS
-    nsteps: int = DEFAULT_STEPS
-    burn: int = DEFAULT_BURN
-    thin: int = 1
-    seed: int = 0
-    noise: object = None
-    subsample: object = DEFAULT_SUBSAMPLE
-    prior: object = None
-    chain_path: object = None
-    moves: object = None
 
 
 #: The fit options the posterior uses (the others do not change its likelihood).
