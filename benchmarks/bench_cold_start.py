@@ -20,7 +20,7 @@ writes MERL tables) instead of the synthetic one. Before the first process and a
 it prints the machine's **fresh-memory reference** (:func:`fresh_memory_reference`): a cold
 ``brdffit fit`` of a full table touches about 1 GB it never used before, and on a virtual
 machine whose host backs guest memory lazily, the first touch of a page can cost ~10 ms per
-MB at one moment and 0.1 ms at the next (``docs/design/fitting.md`` §14), so two cold figures
+MB at one moment and 0.1 ms at the next, so two cold figures
 compare only beside this one.
 """
 

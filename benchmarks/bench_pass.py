@@ -9,7 +9,7 @@ of the model at its defaults, ``evaluate_model``: no download), prepared once pe
 variant's program is compiled once and the calls are interleaved across the variants, so a change in the machine's speed during the run affects
 them alike. Printed per model and variant: min and median seconds of ``--repeat`` calls, the
 number of ``exponential`` instructions in the optimised program (a duplicated primal shows
-there, ``docs/design/fitting.md`` §14), and the min against the default options' min.
+there), and the min against the default options' min.
 """
 
 from __future__ import annotations

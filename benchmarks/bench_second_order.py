@@ -7,7 +7,7 @@ Each Newton round of a fit measures ``Σ rᵢ∇²rᵢ`` on the leading 32,768 c
 (:func:`brdffit.fitting.solve.second_order`). The fit's program takes forward differences of
 exact first derivatives (``solve._second``); the reference is the exact term,
 ``Problem.block_second_order`` (``jax.hessian``) over the whole slab in one piece, compiled
-without options (``docs/design/fitting.md`` §16–§17). Each is compiled by its first call
+without options. Each is compiled by its first call
 (timed: the seconds a cold fit pays for it), then called ``--repeat`` times, interleaved, at
 the fit's start point on a full table (a synthetic one of the model at its defaults, or
 ``--input``, e.g. a realistic table written by ``../shared/realistic/render.py``). Printed

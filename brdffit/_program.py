@@ -1,7 +1,7 @@
 """The ``brdffit`` program's first lines: an interrupt during start-up ends it quietly.
 
-Importing the command line (argparse, every command's module, what they import) takes about
-0.1 s before :func:`brdffit.cli.main` installs its signal watcher (:mod:`brdffit.cli._signals`);
+Importing the command line (argparse, every command's module, what they import) takes a
+moment before :func:`brdffit.cli.main` installs its signal watcher (:mod:`brdffit.cli._signals`);
 an interrupt in that window printed a ``KeyboardInterrupt`` traceback from the middle of an
 import. Nothing has been read or written yet, so :func:`run` ends the process at once with the
 signal's status (130 for ``SIGINT``, 143 for ``SIGTERM``) until the command line is imported,

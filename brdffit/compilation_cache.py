@@ -1,7 +1,7 @@
 """JAX's persistent compilation cache in a per-user folder, so a new process skips compiling.
 
-Every fresh process used to compile its programs from scratch (about 5 s for ``ggx`` on a full
-MERL table, more than the fit itself). The cache keeps the compiled programs on disk, so the
+Every fresh process used to compile its programs from scratch (for ``ggx`` on a full MERL
+table, longer than the fit itself). The cache keeps the compiled programs on disk, so the
 next process loads them instead; ``benchmarks/bench_cold_start.py`` measures the effect.
 
 * **On by default**: :func:`brdffit.fit`, :func:`brdffit.sample_posterior`, the workers of

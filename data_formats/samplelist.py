@@ -211,9 +211,8 @@ def _read_csv(path: Path) -> tuple[list[str], np.ndarray, _LineNumbers]:
 
     The body is parsed by pyarrow's streaming CSV reader, typed float64 and block by block, so
     memory stays near the size of the result: the ``(N, C)`` array is sized from the first
-    block's bytes per row and filled in place (``benchmarks/bench_csv.py``, a 2 M-row, 265 MB
-    file, the whole ``read_samples``: peak RSS 769 -> 542 MB, 6.9-9.8 -> 2.8-3.7 s on a loaded
-    2-core machine). Anything it does not take (a
+    block's bytes per row and filled in place (``benchmarks/bench_csv.py`` measures the time and
+    peak memory of ``read_samples`` on a large file). Anything it does not take (a
     malformed row, a number written as Python's ``float`` reads it but pyarrow does not, such
     as ``1_000``, a comment or blank-but-spaced line between rows) is re-read line by line by
     :func:`_parse_slowly`, which gives the same values or names the bad line and column. (No

@@ -133,7 +133,7 @@ def test_a_metal_has_no_diffuse_term(cells, model_name, weighting):
     """Nickel under plain Schlick (``F90 = 1``): the optimum has no Lambertian part; the albedos
     end exactly at 0 (not 1e-6 with an error bar), are reported at the bound and have no
     standard error. With ``F90`` free the fit puts ``F90`` at 0 and a Lambert term of 0.05–0.2
-    in its place (the proxy's grazing cells; ``docs/design/fitting.md`` §7). ``beckmann``
+    in its place (the proxy's grazing cells). ``beckmann``
     keeps a Lambert term of about 0.1 under the default weighting, which counts the rows far
     from the peak (where the proxy has a floor) more; counting every cell once, it has none."""
     res = brdffit.fit(cells["nickel"], model_name, fixed={"f90": 1.0}, weighting=weighting)

@@ -1,6 +1,6 @@
 """Import layers: every import in ``brdffit/`` and ``data_formats/`` runs downward.
 
-The layers, lowest first (README, "Where things go"):
+The layers, lowest first (``docs/extending.md``):
 
 1. ``data_formats``: file formats, NumPy only (never ``brdffit`` or JAX);
 2. ``brdffit.terms``: the physics pieces; inside it ``_math`` first, then ``ndf``, ``masking``,

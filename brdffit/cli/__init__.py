@@ -189,8 +189,9 @@ def run() -> NoReturn:
     standard streams are flushed, the exit handlers run (``atexit``: JAX's clean-up of its
     backends, logging, multiprocessing's children) and the process ends with ``os._exit``.
     Skipped is only the interpreter's finalisation, which frees every module, compiled program
-    and jaxpr one object at a time: about 0.25 s after a fit, paid by every command for
-    nothing. An exception that escapes :func:`main` (a bug) ends the process the usual way.
+    and jaxpr one object at a time: a noticeable part of a second after a fit, paid by every
+    command for nothing. An exception that escapes :func:`main` (a bug) ends the process the
+    usual way.
     """
     code = main()
     from ._signals import finish_on_signal

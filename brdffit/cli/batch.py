@@ -1,4 +1,4 @@
-"""``brdffit batch INPUT... --model M1,M2 --outdir DIR``: fit many tables with many models, on Dask.
+"""``brdffit batch INPUT… --model M1,M2 --outdir DIR``: fit many tables with many models, on Dask.
 
 Every option of ``brdffit fit`` that shapes the fit (``--config``, ``--loss``, ``--solver``,
 ``--cutoff``, ``--fix``, ``--init``, ``--subsample``, ``--seed``, ``--multistart``) applies to

@@ -13,29 +13,29 @@ error.
 Parameter mapping (the one place it is written down)
 -----------------------------------------------------
 
-=====================================  ======================================================
-brdffit model / parameter              target
-=====================================  ======================================================
-``mitsuba-principled``                 Mitsuba ``<bsdf type="principled">``
-  ``base_color`` (RGB)                 ``base_color`` as ``rgb``
-  ``roughness``, ``anisotropic``,      same names, ``float``
+=======================================  ======================================================
+brdffit model / parameter                target
+=======================================  ======================================================
+``mitsuba-principled``                   Mitsuba ``<bsdf type="principled">``
+  ``base_color`` (RGB)                   ``base_color`` as ``rgb``
+  ``roughness``, ``anisotropic``,        same names, ``float``
   ``metallic``, ``specular``,
   ``spec_tint``, ``sheen``,
   ``sheen_tint``, ``flatness``,
   ``clearcoat``, ``clearcoat_gloss``
-  (not a parameter)                    ``spec_trans = 0`` (reflection only)
-``mitsuba-roughconductor[-beckmann]``  Mitsuba ``<bsdf type="roughconductor">``,
-``[-aniso][-tint]``                    ``distribution`` = ``ggx`` / ``beckmann``
-  ``alpha``                            ``alpha`` (isotropic variants)
-  ``alpha_u``, ``alpha_v``             ``alpha_u`` (tangent), ``alpha_v`` (bitangent)
-  ``eta``, ``k`` (RGB)                 ``eta``, ``k`` as ``rgb``
-  ``specular_reflectance`` (``-tint``) ``specular_reflectance`` as ``rgb``; ``eta = 0``,
-                                       ``k = 1`` (Mitsuba's defaults: ``F = 1``)
-``gltf-pbr``                           glTF 2.0 ``materials[0].pbrMetallicRoughness``
-  ``base_color`` (RGB, linear)         ``baseColorFactor`` ``[r, g, b, 1]``
-  ``metallic``                         ``metallicFactor``
-  ``roughness``                        ``roughnessFactor`` (``α = roughness²``)
-=====================================  ======================================================
+  (not a parameter)                      ``spec_trans = 0`` (reflection only)
+``mitsuba-roughconductor[-beckmann]``    Mitsuba ``<bsdf type="roughconductor">``,
+``[-aniso][-tint]``                      ``distribution`` = ``ggx`` / ``beckmann``
+  ``alpha``                              ``alpha`` (isotropic variants)
+  ``alpha_u``, ``alpha_v``               ``alpha_u`` (tangent), ``alpha_v`` (bitangent)
+  ``eta``, ``k`` (RGB)                   ``eta``, ``k`` as ``rgb``
+  ``specular_reflectance`` (``-tint``)   ``specular_reflectance`` as ``rgb``; ``eta = 0``,
+                                         ``k = 1`` (Mitsuba's defaults: ``F = 1``)
+``gltf-pbr``                             glTF 2.0 ``materials[0].pbrMetallicRoughness``
+  ``base_color`` (RGB, linear)           ``baseColorFactor`` ``[r, g, b, 1]``
+  ``metallic``                           ``metallicFactor``
+  ``roughness``                          ``roughnessFactor`` (``α = roughness²``)
+=======================================  ======================================================
 
 Targets: the registry :data:`TARGETS` (name -> :class:`Target`), the one list the command line
 (``brdffit export --to``, its help), the error messages and the tests read: ``"mitsuba-dict"``

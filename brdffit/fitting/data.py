@@ -24,7 +24,7 @@ Selection happens in two stages, so that every table of one layout compiles once
   at the peak, half at ``θh = 90°``. Counting every cell once (``weighting="samples"``) lets
   the rows near the peak decide the lobe's width; on 69 measured materials that made the
   ``beckmann`` roughness systematically narrower than the published Cook–Torrance fits
-  (``docs/design/fitting.md`` §10). Measurements with ``σ`` are χ² terms and are not reweighted.
+  Measurements with ``σ`` are χ² terms and are not reweighted.
 
 Burley 2012 §3.1/§4.7: data past about 75–80° is extrapolated in the MERL set; ``cutoff=80``
 drops it. The default keeps everything (the caller decides).
@@ -61,9 +61,9 @@ except ImportError:  # pragma: no cover - not on Windows: no address-space limit
 MIN_CELLS_PER_PARAM = 3
 #: Cells per block of the Jacobian accumulation (:func:`brdffit.fitting.normal_form.gram`) on a
 #: CPU; larger selections are padded with zero-weight cells to a whole number of blocks. A
-#: block's tangent fields then stay in the core's cache: on a full MERL table a ``ggx`` pass
-#: took 0.47 s in blocks of 4096 cells against 0.66 s in blocks of 32768 (one core;
-#: ``docs/design/fitting.md``), and the start scan and the warm start can use fewer cells.
+#: block's tangent fields then stay in the core's cache (a ``ggx`` pass over a full MERL table
+#: is faster than in blocks of 32768 cells), and the start scan and the warm start can use
+#: fewer cells.
 CHUNK_CELLS = 4096
 #: Cells per block on an accelerator, which needs wide blocks to fill its cores.
 ACCELERATOR_CHUNK_CELLS = 1 << 18

@@ -1,11 +1,11 @@
 """``fit``: least-squares fitting of a registered model to a measured table, with optimistix.
 
-The pipeline: the options, checked (:mod:`.options`) → the cells (:mod:`.data`) → the free
-scalars and their bounds (:mod:`.parameters`) → the starting point (:mod:`.start`, or the
-user's) → the problem in box coordinates (:mod:`.problem`, :mod:`.transforms`) → bounded
+The pipeline: the options, checked (:mod:`~brdffit.fitting.options`) → the cells (:mod:`.data`)
+→ the free scalars and their bounds (:mod:`.parameters`) → the starting point (:mod:`.start`, or
+the user's) → the problem in box coordinates (:mod:`.problem`, :mod:`.transforms`) → bounded
 optimistix solves of the Gauss–Newton normal form (:mod:`.normal_form`, :mod:`.solvers`,
-:mod:`.solve`), start by start and stage by stage (:mod:`.stages`) → the verdict, covariance
-and metrics (:mod:`.outcome`, :mod:`.statistics`) → :class:`~.result.FitResult`.
+:mod:`.solve`), start by start and stage by stage (:mod:`.stages`) → the verdict, covariance and
+metrics (:mod:`.outcome`, :mod:`.statistics`) → :class:`~.result.FitResult`.
 """
 
 from __future__ import annotations

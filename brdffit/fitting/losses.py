@@ -26,9 +26,11 @@ A robust variant of any loss (``huber=δ``) replaces ``r`` beyond ``|r| > δ`` b
 (``≈ ρ cosθi``) on the diffuse floor, so both regions count, and the cosine down-weights the
 grazing cells that Burley 2012 §4.7 calls extrapolated. It is the weighting of the MERL fitting
 literature (Löw et al. 2012, "BRDF models for accurate and efficient rendering of glossy
-surfaces"; a citation from outside the seed texts, which do not cover fitting losses). The
-comparison of the four on a real-like table is in ``docs/design/fitting.md``;
-``tests/test_fit_cross.py`` keeps the evidence.
+surfaces"; a citation from outside the seed texts, which do not cover fitting losses). On a
+real-like table (a sharp lobe over a weak broad one and a diffuse floor, noise, wild cells)
+``log`` finds the sharp lobe from either start; under ``linear`` the peak cells decide and the
+diffuse level collapses; ``cosine`` converges elsewhere from a second start; ``relative`` lets
+wild and grazing cells pull ``F0`` to its bound. ``tests/test_fit_cross.py`` keeps the evidence.
 
 The default stays ``log`` over every cell above the horizon (no default ``cutoff``) on the
 measured materials too. Against the published Cook–Torrance roughness of 69 MERL materials,
@@ -38,8 +40,7 @@ against each other (each MERL cell weighted by its width in ``θh``, which undoe
 format's warp towards the peak: 78% → 91%, the default ``weighting="angles"`` of
 :mod:`brdffit.fitting.data`). The loss itself did not: with ``F90`` free, an 80° cutoff
 lowers that figure (to 70%: the sharp lobes end too narrow), and the ``cosine`` loss and
-Ngan 2005's linear ``ρ cosθi`` residual make sharp lobes 4–5× too narrow
-(``docs/design/fitting.md`` §7 and §10 have these runs).
+Ngan 2005's linear ``ρ cosθi`` residual make sharp lobes 4–5× too narrow.
 """
 
 from __future__ import annotations

@@ -138,7 +138,7 @@ class Problem(eqx.Module):
         adjoint), or, for a model with ``per_pass`` tables given ``tables`` (from
         :meth:`pass_tables` at ``u``), by forward mode from the tangent fields of
         :meth:`tangents_x`, through which the tables' tangents enter (reverse mode would
-        rebuild the tables for every block: ``gtr`` 0.42 s per slab against 0.09 s).
+        rebuild the tables for every block, several times slower for ``gtr``).
         """
         acc = r_bar.dtype
         if tables is None:

@@ -26,8 +26,7 @@ from .solvers import COST_NOISE, end_optimality, with_history
 from .statistics import N_CELL_SUMS, metrics_from
 
 #: XLA CPU options for the fitting program (per program: ``jax.config`` and ``XLA_FLAGS`` are
-#: untouched; on other backends, or a jaxlib without them, none is set;
-#: ``docs/design/fitting.md`` §5 and §14 have the measurements):
+#: untouched; on other backends, or a jaxlib without them, none is set):
 #:
 #: * keep YNNPACK for matrix products only: its default also routes the reductions of the
 #:   3-wide dot products of direction batches through slow YNNPACK fusions;
@@ -47,7 +46,7 @@ CPU_COMPILER_OPTIONS = {
 #: ``SECOND_CELLS`` cells (an evenly spread subset, :func:`.data.select`; all of a smaller
 #: stage): it only sets the solver's quadratic model, so its sampling error changes the
 #: convergence rate, never the answer. ``beckmann``'s term is noisy: 8,192 cells made some full
-#: fits crawl (``docs/design/fitting.md``).
+#: fits crawl.
 SECOND_CELLS = 32768
 
 
@@ -215,8 +214,7 @@ def _second(problem: Problem, z, data, blocks):
     while measuring it on ``SECOND_CELLS`` cells instead of the whole table already moves it
     by 4–19e-2 (it only shapes the solver's quadratic model). In exchange its program
     compiles in less time than ``jax.hessian``'s (a cold fit compiles it beside the solve's,
-    on the same two cores), runs faster and maps no fresh memory per call
-    (``docs/design/fitting.md`` §17)."""
+    on the same two cores), runs faster and maps no fresh memory per call."""
     acc = jnp.promote_types(z.dtype, jnp.float32)
     block = data.wi.shape[0] // problem.chunks
     n_blocks = _slab_blocks(problem, data)
@@ -257,14 +255,14 @@ def compile_second_ahead(problem: Problem, z, data: FitData) -> threading.Thread
     stage. Tracing and lowering are Python, which holds the interpreter lock: on a thread they
     would only take turns with the tracing of the solve; done first, here, they leave the
     thread the part that runs in parallel, XLA's compilation, overlapped with the solve's
-    tracing (cold ``ggx``: ``docs/design/fitting.md`` §15). The thread runs under the caller's
+    tracing. The thread runs under the caller's
     ``jax_enable_x64`` (a thread-local setting that :func:`brdffit.fit` sets per call). A
     failure is dropped: the first call then compiles as it would have.
     """
     x64 = bool(jax.config.jax_enable_x64)
     # optimistix compares constant results (equinox enumerations) eagerly while the solve is
     # traced: a small conversion program, compiled once per process. Compiled here, before the
-    # thread's compilation occupies the cores, it costs 0.03 s instead of 0.25-0.45 s.
+    # thread's compilation occupies the cores, it does not wait for them.
     _ = optx.RESULTS.successful == optx.RESULTS.successful
     try:
         lowered = _second_program().lower(problem, jnp.asarray(z), data, np.int32(1))

@@ -36,7 +36,8 @@ Parts swapped in (optimistix solvers are built from parts):
   adds the test of a relative cost change and a step in the units of the data, for valleys
   where the local model keeps promising a decrease that no step finds.
 
-Why these parts, and the measurements behind them: ``docs/design/fitting.md``.
+How these parts make the solver and its convergence tests: ``docs/design/fitting.md`` ("The
+solver", "Convergence tests").
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ the residual at the optimum is mostly model error and Gauss–Newton alone conve
 linearly. Each stage, and each round, starts with the trust region the previous one ended with
 (except after a round on the other model that accepted no step: :meth:`Run.solve`). The blocks
 are interleaved (:func:`.data.select`), so every leading subset is an even sample of the
-table. Measurements and the history of these choices: ``docs/design/fitting.md``.
+table. How the stages fit into a fit: ``docs/design/fitting.md`` ("The fit path").
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ SCAN_FTOL = 1e-4
 #: The scan's candidate starts divide and multiply every log-scaled parameter (the lobe
 #: widths) by this factor: 0.3 of the box for ``α ∈ [10⁻³, 1]``, 0.53 for Disney's
 #: ``roughness ∈ [0.02, 1]`` (a fixed shift in box units would be a factor 3.2 there, too
-#: little to leave the basin of a start read off a sharp peak: ``docs/design/fitting.md`` §10).
+#: little to leave the basin of a start read off a sharp peak).
 SCAN_FACTOR = 8.0
 #: Solves run in rounds of at most this many steps (:meth:`Run.solve`).
 ROUND_STEPS = 10
@@ -163,14 +163,14 @@ class Run:
         region on its own model's account; the next round, on the other model, starts from the
         region the failed round started with. Otherwise a wrong Newton model leaves
         Gauss–Newton a region shrunk ×0.25 per rejection each time, and the two crawl by turns
-        until the step limit (``docs/design/fitting.md`` §11). Every round of the default step
+        until the step limit. Every round of the default step
         limit has the same length, so one compiled program serves them all.
 
         The solve also ends, converged, when ``STILL_ROUNDS`` rounds in a row that ran out of
         steps each accepted steps and left the fit where it was (:func:`still`): the quadratic
         models still promise a decrease (``ω > ftol``) that no step they propose finds, and the
         answer no longer changes in the units of the data (a shallow curved valley of a model
-        that does not fit the table, ``docs/design/fitting.md`` §12).
+        that does not fit the table).
         """
         chunks = self.problem.chunks
         floor = self.floor if active == chunks else self.floor * active / chunks
@@ -244,8 +244,8 @@ def best_of(problem: Problem, solver, data: FitData, zs, max_steps: int, scan: b
     cost of each start."""
     # every stage after the first uses the second-order program: compile it meanwhile, unless
     # the model builds a table per pass (gtr's numerical Λ): its solve program's compilation
-    # keeps both cores busy for ~10 s, and one beside it gained nothing (cold gtr CLI fits
-    # 17.9-19.3 s either way) for 0.25-0.35 GB more memory (docs/design/fitting.md §15, §17)
+    # keeps both cores busy, and compiling the second-order program beside it made a cold fit
+    # no faster, for more memory
     staged = len(start_plan(problem, data, scan)) > 1
     ahead = (compile_second_ahead(problem, zs[0], data)
              if staged and problem.model.per_pass is None else None)

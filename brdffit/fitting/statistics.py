@@ -15,8 +15,9 @@ are *not* at a bound (``m`` residuals with non-zero weight, ``p`` such scalars):
 
 The classical estimate assumes every residual has the same variance. Under the default ``log``
 loss, multiplicative noise is *not* homoscedastic (a residual's spread is ``σ ρcosθ/(1+ρcosθ)``:
-``σ`` on the peak, ``~0.01σ`` on a dark diffuse floor), hence the sandwich by default (the
-coverage measured for both: ``docs/design/fitting.md``).
+``σ`` on the peak, ``~0.01σ`` on a dark diffuse floor), hence the sandwich by default: with 2%
+multiplicative noise on ``ggx`` tables the classical estimate's ``|z|`` reached 4.8, the
+sandwich's root-mean-square ``z`` stayed within 0.5–1.2 for every parameter.
 
 Delta method: ``J_x = J_u (∂x/∂u)⁻¹``, so the bounds transform cancels and the covariance is in
 physical units. Scalars at a bound are held fixed (their ``∂x/∂u`` vanishes), as scipy's

@@ -13,7 +13,8 @@ affine in ``s``, so a parameter on its bound has the same derivative as one insi
 Levenberg–Marquardt step (:func:`brdffit.fitting.solvers.box_step`) keeps every iterate in the
 box, puts a parameter whose optimum lies at or beyond its bound exactly on it, and leaves it
 there only when the gradient points back inside (an active set, as in MINPACK/Ceres's bounded LM
-or scipy's ``trf``); why not a logistic map: ``docs/design/fitting.md``.
+or scipy's ``trf``). A logistic map ``x − lo ∝ eᵘ`` would not do: its derivative vanishes on the
+way to a bound, so an optimum on the bound is approached without end.
 
 The albedo-like parameters (diffuse, ``F0``) are linear in ``z``: most models are linear in
 them, so the Gauss–Newton model is nearly exact along those coordinates.

@@ -7,10 +7,9 @@ parameters; the BRDF itself is :func:`brdffit.terms.aps.brdf.aps_brdf`, in its t
 The registered models declare the stages (``Model.stages``) so that
 :func:`brdffit.models.evaluate.evaluate_model` (fitted tables, figures) builds the tables once
 and compiles stages 2 and 3 as separate programs. Compiled as one program, XLA's CPU backend
-re-derives the table lookups in each of the ~16 gather fusions feeding the RGB output; measured
-over the 1.46 M direction pairs of a MERL grid (``benchmarks/bench_aps.py``, 2 CPU cores), the
-anisotropic Gaussian took 284 ms as one program and 157 ms through ``evaluate_model`` (tables
-built once, two programs), with the same results to rounding (``tests/test_aps.py``).
+re-derives the table lookups in each of the ~16 gather fusions feeding the RGB output, which
+makes it markedly slower than the two programs (``benchmarks/bench_aps.py`` times both), with
+the same results to rounding (``tests/test_aps.py``).
 """
 
 from __future__ import annotations
@@ -39,12 +38,12 @@ SIGMA_BOUNDS = (0.08, 1.0)
 
 #: Table sizes of the registered models (call :func:`~brdffit.terms.aps.aps_brdf` with others).
 #: Isotropic tables are 1-D (33 elevations) and cheap; anisotropic ones are 2-D (17 elevations ×
-#: 24 azimuths for g, 11 × 16 for R), sized so that one evaluation with its table builds stays
-#: near 0.1 s on a CPU core. Measured visibility P(k) (eq. 25) against much finer tables
-#: (65 × 96, doubled quadratures) at 4000 random directions: anisotropic Gaussian σ = 0.1/0.3
-#: within 0.35 % above 10° elevation and 2.3 % between 2° and 10° (bilinear interpolation in φ
-#: dominates); σ = 0.2/0.5: 0.5 % / 1.8 %; velvet σ = 0.5: 0.3 % / 0.02 %; p = GGX(α = 0.1)
-#: against Smith's closed-form G1: 0.02 % / 0.04 %.
+#: 24 azimuths for g, 11 × 16 for R), sized so that building them costs little beside one
+#: evaluation over a MERL grid (``benchmarks/bench_aps.py``). Measured visibility P(k) (eq. 25)
+#: against much finer tables (65 × 96, doubled quadratures) at 4000 random directions:
+#: anisotropic Gaussian σ = 0.1/0.3 within 0.35 % above 10° elevation and 2.3 % between 2° and
+#: 10° (bilinear interpolation in φ dominates); σ = 0.2/0.5: 0.5 % / 1.8 %; velvet σ = 0.5:
+#: 0.3 % / 0.02 %; p = GGX(α = 0.1) against Smith's closed-form G1: 0.02 % / 0.04 %.
 ISO_RESOLUTION = Resolution()
 ANISO_RESOLUTION = Resolution(
     n_u=17, n_phi=24, n_psi=16, n_beta=8, n_theta=40, n_phi_q=64, r_grid=(11, 16), r_quad=(32, 48)

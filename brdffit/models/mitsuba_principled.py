@@ -168,7 +168,6 @@ def _unit(name, default, description):
 PRINCIPLED_PARAMS = (
     # log-scaled, not scanned: the tint base_color / lum(base_color) has a derivative of
     # ~1/lum near the bound, base_color / lum = O(1) in log base_color
-    # (docs/design/fitting.md §11)
     Param("base_color", (3,), BASE_COLOR_MIN, 1.0, 0.5,
           "surface color, linear RGB (Mitsuba base_color)", log=True, scan=False),
     Param("roughness", (), 0.032, 1.0, 0.5, "roughness; α = roughness² ≥ 0.001 (Mitsuba roughness)",

@@ -35,8 +35,8 @@ ALPHA = Param("alpha", (), *ALPHA_BOUNDS, 0.1, "microfacet roughness α", log=Tr
 #: of ``beckmann`` is at most 0.37 (69 materials) and ends on a bound on 34 of 80 (at 0 on the
 #: sharp dielectrics and metals looked at: no grazing rise at all). With ``F90 = 1`` forced, one
 #: lobe follows the grazing cells by being broad, 1.5–23× rougher than the published
-#: Cook–Torrance fits, whose free specular scale had this degree of freedom
-#: (``docs/design/fitting.md`` §7). The start, 1, is plain Schlick.
+#: Cook–Torrance fits, whose free specular scale had this degree of freedom. The start, 1, is
+#: plain Schlick.
 F90 = Param(
     "f90", (), 0.0, 1.0, 1.0, "specular reflectance at grazing incidence F90 (generalized Schlick)"
 )

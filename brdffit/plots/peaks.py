@@ -9,6 +9,7 @@ peak's core and its tail are both visible, f_r on a log axis, one colour per RGB
   ``|θd − θd_target| < theta_d_tol_deg``, at their own θh.
 * Fitted (lines): the model at 300 θh values evenly spaced in the warped coordinate, at exactly
   that θd and φd (the model needs no data).
+
 Non-positive values cannot be shown on the log axis and are left out.
 """
 

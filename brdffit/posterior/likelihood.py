@@ -103,8 +103,8 @@ def _sum_squares(problem: Problem, x_free, data: FitData):
 def least_squares_sigma(problem: Problem, x_free, data: FitData) -> float:
     """``s = sqrt(Σr² / (m - p))`` at ``x_free`` on ``data`` (``p`` free scalars).
 
-    Jitted: run op by op, a model with a numerical Λ (``gtr``) spends seconds compiling each
-    primitive of its quadrature separately (8.5 s measured on 2 cores, against one compile)."""
+    Jitted: run op by op, a model with a numerical Λ (``gtr``) would compile each primitive of
+    its quadrature separately, far slower than one compile of the whole."""
     ssq = float(_sum_squares(problem, jnp.asarray(x_free), data))
     dof = max(n_observations(data) - len(problem.free), 1)
     return float(np.sqrt(ssq / dof))

@@ -27,9 +27,8 @@ def dot(a, b):
 
     Written out term by term for 3-vectors: elementwise work that XLA fuses into the caller's
     loop, where ``jnp.sum(a * b, axis=-1)`` is a reduction over a length-3 axis, which XLA's CPU
-    backend (jaxlib 0.10) turns into a separate, slow library fusion: measured on the 1.46 M
-    direction pairs of a MERL grid, ``aps-gaussian`` took 291 ms with the reduction and the
-    ``ggx`` model 70 ms (``benchmarks/bench_aps.py``).
+    backend (jaxlib 0.10) turns into a separate, slow library fusion (``benchmarks/bench_aps.py``
+    times models over a MERL grid).
     """
     if a.shape[-1:] == (3,) or b.shape[-1:] == (3,):
         return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]

@@ -29,7 +29,7 @@ _ERF_SERIES = tuple(
 #: approximate it well on the whole half-line; this one is a least-squares fit of the relative
 #: error on Chebyshev nodes of ``s ∈ [0, 1]``, computed with mpmath at 50 digits and reweighted
 #: to the relative error eight times: ``|rational/G − 1| < 1e-12`` on ``[0, 1]``
-#: (``G(0) = ½``; ``docs/design/fitting.md`` §12 describes the fit).
+#: (``G(0) = ½``).
 _G_NUM = (0.2307325264790818, 47.203728002151436, 297.0521865992943, 515.1189703625669,
           342.03115575297306, 97.60982329884904, 11.890152418589134, 0.4999999999996486)
 _G_DEN = (62.46692664765695, 609.1197978483472, 1680.920260414656, 1862.476131436285,

@@ -83,10 +83,9 @@ class GTR(NDF):
 
     ``alpha`` and ``gamma`` are scalars (batch over parameter sets with ``jax.vmap``): each
     ``Lambda`` call builds one θ table from them (``n_theta`` nodes, ``4 · n_quad`` quadrature
-    nodes each; about 1.3 ms on one loaded CPU core in float64) and interpolates it for every
-    direction. ``table`` (from :meth:`lambda_table` of the same ``α, γ``) skips that build: the
-    fitter builds it once per pass over the table instead of once per block of cells
-    (``Model.per_pass``).
+    nodes each) and interpolates it for every direction. ``table`` (from :meth:`lambda_table`
+    of the same ``α, γ``) skips that build: the fitter builds it once per pass over the table
+    instead of once per block of cells (``Model.per_pass``).
     """
 
     alpha: jax.Array
