@@ -244,7 +244,7 @@ def _main(argv, watcher) -> int:
 
 #: The one line of an allocation that failed, in Python or in XLA (host or accelerator).
 OUT_OF_MEMORY = ("out of memory; the input is too large for this machine (see the input limits "
-                 "in README.md)")
+                 "in docs/formats.md; --subsample or --cutoff fit fewer cells)")
 
 
 def _out_of_memory(exc: BaseException) -> bool:
