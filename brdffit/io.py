@@ -122,8 +122,14 @@ def read_path(path):
 
 def sha256(path, chunk: int = 1 << 20) -> str:
     """Hex SHA-256 of the file at ``path`` (read in ``chunk``-byte pieces)."""
-    h = hashlib.sha256()
     with open(path, "rb") as fh:
-        while block := fh.read(chunk):
-            h.update(block)
+        return sha256_of(fh, chunk)
+
+
+def sha256_of(fh, chunk: int = 1 << 20) -> str:
+    """Hex SHA-256 of what remains in the binary file object ``fh`` (read in pieces): for a
+    file the caller opened its own way (without following links, say)."""
+    h = hashlib.sha256()
+    while block := fh.read(chunk):
+        h.update(block)
     return h.hexdigest()

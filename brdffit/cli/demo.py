@@ -110,8 +110,9 @@ def run(args) -> int:
 def _sha256(path: Path) -> str | None:
     """``sha256:<hex>`` of the regular file at ``path`` (never through a link); ``None`` if it
     is no regular file or cannot be read."""
-    import hashlib
     import stat
+
+    from ..io import sha256_of
 
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | os.O_CLOEXEC)
@@ -120,10 +121,7 @@ def _sha256(path: Path) -> str | None:
     with os.fdopen(fd, "rb") as f:
         if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
             return None
-        digest = hashlib.sha256()
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return "sha256:" + digest.hexdigest()
+        return "sha256:" + sha256_of(f)
 
 
 def _manifest(outdir: Path) -> dict | None:

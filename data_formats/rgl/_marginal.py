@@ -165,6 +165,18 @@ class Marginal2D:
             raise ValueError(f"Marginal2D: points must have shape (N, 2), got {pts.shape}")
         return pts, self._corners(params, len(pts))
 
+    def _cell(self, points, params):
+        """The table cell of each position ``(N, 2)`` in ``[0, 1]²`` (clamped): its column and
+        row, the position inside it, the parameter corners, and its four corner values
+        ``(v00, v10, v01, v11)`` (shared by :meth:`invert` and :meth:`eval`)."""
+        p, corners = self._prepare(points, params)
+        w, h = self.w, self.h
+        p = np.clip(p, 0.0, 1.0) * np.array([w - 1, h - 1], dtype=np.float64)
+        px = np.minimum(p[:, 0].astype(np.int64), w - 2)
+        py = np.minimum(p[:, 1].astype(np.int64), h - 2)
+        x, y = p[:, 0] - px, p[:, 1] - py
+        return px, py, x, y, corners, self._corner_values(corners, py * w + px)
+
     def sample(self, points, params=(), *, guard: bool = True):
         """``Marginal2D::sample_continuous``: uniform ``(N, 2)`` -> ``(positions, pdf)``.
 
@@ -202,13 +214,8 @@ class Marginal2D:
         """``Marginal2D::invert_continuous``: positions ``(N, 2)`` -> ``(uniform, pdf)``."""
         if self.cond is None:
             raise ValueError("Marginal2D.invert: built with enable_sampling=False")
-        s, corners = self._prepare(points, params)
+        px, py, x, y, corners, (v00, v10, v01, v11) = self._cell(points, params)
         w, h = self.w, self.h
-        s = np.clip(s, 0.0, 1.0) * np.array([w - 1, h - 1], dtype=np.float64)
-        px = np.minimum(s[:, 0].astype(np.int64), w - 2)
-        py = np.minimum(s[:, 1].astype(np.int64), h - 2)
-        x, y = s[:, 0] - px, s[:, 1] - py
-        v00, v10, v01, v11 = self._corner_values(corners, py * w + px)
         c0, c1 = _lerp(v00, v01, y), _lerp(v10, v11, y)
         pdf = _lerp(c0, c1, x)
         x = self._invert_segment(x, 1.0 / (w - 1), c0, c1)
@@ -223,16 +230,10 @@ class Marginal2D:
         y = self._invert_segment(y, 1.0 / (h - 1), r0, r1)
         y = y + np.where(py > 0, self._lookup(self.marg, corners, np.maximum(py - 1, 0)), 0.0)
         if not self.normalized:
-            y = y / self._lookup(self.marg, corners, np.full(len(s), h - 2))
+            y = y / self._lookup(self.marg, corners, np.full(len(px), h - 2))
         return np.stack([x, y], axis=1), pdf
 
     def eval(self, points, params=()):
         """``Marginal2D::eval``: the (parameter- and bilinearly interpolated) density."""
-        p, corners = self._prepare(points, params)
-        w, h = self.w, self.h
-        p = np.clip(p, 0.0, 1.0) * np.array([w - 1, h - 1], dtype=np.float64)
-        ox = np.minimum(p[:, 0].astype(np.int64), w - 2)
-        oy = np.minimum(p[:, 1].astype(np.int64), h - 2)
-        x, y = p[:, 0] - ox, p[:, 1] - oy
-        v00, v10, v01, v11 = self._corner_values(corners, oy * w + ox)
+        _, _, x, y, _, (v00, v10, v01, v11) = self._cell(points, params)
         return _lerp(_lerp(v00, v10, x), _lerp(v01, v11, x), y)
