@@ -215,7 +215,11 @@ def _read_csv(path: Path) -> tuple[list[str], np.ndarray, _LineNumbers]:
     peak memory of ``read_samples`` on a large file). Anything it does not take (a
     malformed row, a number written as Python's ``float`` reads it but pyarrow does not, such
     as ``1_000``, a comment or blank-but-spaced line between rows) is re-read line by line by
-    :func:`_parse_slowly`, which gives the same values or names the bad line and column. (No
+    :func:`_parse_slowly`, which gives the same values or names the bad line and column.
+    pyarrow allocates from its system pool (``malloc``), not its default mimalloc pool, which
+    reserves 1 GiB of address space at first use: a reader under ``ulimit -v`` ran out of
+    address space before it could name a bad line (``benchmarks/bench_csv.py``: the same
+    speed, 10 % less peak memory). (No
     pyarrow ``invalid_row_handler``: it decodes the row as UTF-8 before calling back and
     prints an "Exception ignored" traceback for any other byte.)
     """
@@ -248,6 +252,7 @@ def _parse_fast(path, fh, header) -> np.ndarray:
                                          newlines_in_values=False, ignore_empty_lines=True),
         convert_options=pacsv.ConvertOptions(column_types={n: pa.float64() for n in names},
                                              null_values=[], strings_can_be_null=False),
+        memory_pool=pa.system_memory_pool(),
     )
     remaining = max(os.fstat(fh.fileno()).st_size - fh.tell(), 1)
     data, n = np.empty((0, len(header))), 0
