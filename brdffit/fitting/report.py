@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from ..metrics import METRICS, metric_text
+from .statistics import ESTIMATOR_CAVEAT, estimator_text
 
 #: Correlations listed by the reports: those at least this strong (absolute value).
 MIN_CORRELATION = 0.1
@@ -46,6 +47,8 @@ def value_with_error(value: float, err: float) -> str:
 
 #: At most this many correlations are listed (all are in ``result.correlation``).
 MAX_LISTED = 10
+#: The summary (:meth:`FitResult.summary`) lists this many.
+SUMMARY_CORRELATIONS = 3
 #: The one-line caveat printed under AIC and BIC.
 CRITERIA_CAVEAT = ("residuals of a model fitted to a measured BRDF are correlated model error, "
                    "not independent noise: AIC/BIC compare models on the same data only")
@@ -108,7 +111,8 @@ def _statistics(result) -> list[tuple[str, str]]:
     parts = ", ".join(f"{k} {v:.2f}" for k, v in t.items())
     return [
         ("fit", _verdict(result)),
-        ("loss, solver", f"{result.loss}, {result.solver}; covariance {result.covariance}"),
+        ("loss, solver", f"{result.loss}, {result.solver}"),
+        ("covariance", estimator_text(result.covariance)),
         ("data", f"{result.n_cells} cells used of {result.n_total}, N = {ic['n_data']} "
                  f"residuals, k = {ic['n_free']} free scalars"),
         ("cost", f"{result.cost:.6g} (χ² = Σr² = {ic['chi2']:.6g}, reduced χ² "
@@ -128,6 +132,8 @@ def fit_report(result, *, min_correl: float = MIN_CORRELATION) -> str:
         lines.append(f"    {key:<13} {value}")
         if key == "AIC, BIC":
             lines.append(f"    {'':<13} ({CRITERIA_CAVEAT})")
+        if key == "covariance":
+            lines.append(f"    {'':<13} ({ESTIMATOR_CAVEAT})")
     if result.message:
         lines.append(f"    {'message':<13} {result.message}")
     lines.append("[[Metrics]]")
