@@ -60,11 +60,11 @@ def information_criteria(result) -> dict:
     n = int(result.n_cells) * (1 if (result.provenance or {}).get("tied") else 3)
     k = len(result.free)
     chi2 = 2.0 * float(result.cost)
-    ok = math.isfinite(chi2) and chi2 > 0 and n > 0
+    ok = math.isfinite(chi2) and chi2 > 0 and 0 < n < 2**53  # a count a float holds exactly
     fit = n * math.log(chi2 / n) if ok else float("nan")
     return {"n_data": n, "n_free": k, "chi2": chi2,
-            "reduced_chi2": chi2 / (n - k) if n > k else float("nan"),
-            "aic": fit + 2 * k, "bic": fit + k * math.log(n) if n > 0 else float("nan")}
+            "reduced_chi2": chi2 / (n - k) if ok and n > k else float("nan"),
+            "aic": fit + 2 * k, "bic": fit + k * math.log(n) if ok else float("nan")}
 
 
 def strongest_correlations(result, min_abs: float = MIN_CORRELATION) -> list[tuple]:

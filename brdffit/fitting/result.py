@@ -266,8 +266,11 @@ class FitResult:
         the diagonal elsewhere (:func:`brdffit.fitting.statistics.correlation`)."""
         from .statistics import correlation
 
-        return correlation(self.cov, [r["stderr"] if not r["status"].startswith("=") else
-                                      float("nan") for r in self.rows()])
+        se = np.sqrt(np.clip(np.diag(np.asarray(self.cov, float)), 0, None))
+        none = (set(self.fixed) | set(self.at_bound) | set(self.not_identified)
+                | set(self.provenance.get("tied") or {}))
+        return correlation(self.cov, [float("nan") if n in none else float(v)
+                                      for n, v in zip(self.names, se)])
 
     @property
     def aic(self) -> float:
