@@ -122,7 +122,9 @@ class PosteriorResult:
         rows = [("", "", "p16", "p50", "p84", "LS (same cells)", "tau", "ess")]
         for n in self.sampled:
             p = self.percentiles[n]
-            ls = f"{x_ls[n]:.5g} ± {self.stderr_ls.get(n, float('nan')):.3g}" if n in x_ls else ""
+            se = self.stderr_ls.get(n, float("nan"))
+            ls = "" if n not in x_ls else (f"{x_ls[n]:.5g} ± {se:.3g}" if np.isfinite(se)
+                                           else f"{x_ls[n]:.5g} (no error)")
             rows.append((n, "=", *(f"{v:.5g}" for v in p[:3]), ls, f"{d.tau[n]:.1f}",
                          f"{d.ess[n]:.0f}"))
         width = max([10] + [len(n) for n in [*self.sampled, *self.fixed]])  # the name column
