@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from ..metrics import METRICS, metric_text
+from .statistics import ESTIMATOR_CAVEAT, estimator_text
 
 #: Correlations listed by the reports: those at least this strong (absolute value).
 MIN_CORRELATION = 0.1
@@ -46,6 +47,8 @@ def value_with_error(value: float, err: float) -> str:
 
 #: At most this many correlations are listed (all are in ``result.correlation``).
 MAX_LISTED = 10
+#: The summary (:meth:`FitResult.summary`) lists this many.
+SUMMARY_CORRELATIONS = 3
 #: The one-line caveat printed under AIC and BIC.
 CRITERIA_CAVEAT = ("residuals of a model fitted to a measured BRDF are correlated model error, "
                    "not independent noise: AIC/BIC compare models on the same data only")
@@ -57,11 +60,11 @@ def information_criteria(result) -> dict:
     n = int(result.n_cells) * (1 if (result.provenance or {}).get("tied") else 3)
     k = len(result.free)
     chi2 = 2.0 * float(result.cost)
-    ok = math.isfinite(chi2) and chi2 > 0 and n > 0
+    ok = math.isfinite(chi2) and chi2 > 0 and 0 < n < 2**53  # a count a float holds exactly
     fit = n * math.log(chi2 / n) if ok else float("nan")
     return {"n_data": n, "n_free": k, "chi2": chi2,
-            "reduced_chi2": chi2 / (n - k) if n > k else float("nan"),
-            "aic": fit + 2 * k, "bic": fit + k * math.log(n) if n > 0 else float("nan")}
+            "reduced_chi2": chi2 / (n - k) if ok and n > k else float("nan"),
+            "aic": fit + 2 * k, "bic": fit + k * math.log(n) if ok else float("nan")}
 
 
 def strongest_correlations(result, min_abs: float = MIN_CORRELATION) -> list[tuple]:
@@ -108,7 +111,8 @@ def _statistics(result) -> list[tuple[str, str]]:
     parts = ", ".join(f"{k} {v:.2f}" for k, v in t.items())
     return [
         ("fit", _verdict(result)),
-        ("loss, solver", f"{result.loss}, {result.solver}; covariance {result.covariance}"),
+        ("loss, solver", f"{result.loss}, {result.solver}"),
+        ("covariance", estimator_text(result.covariance)),
         ("data", f"{result.n_cells} cells used of {result.n_total}, N = {ic['n_data']} "
                  f"residuals, k = {ic['n_free']} free scalars"),
         ("cost", f"{result.cost:.6g} (χ² = Σr² = {ic['chi2']:.6g}, reduced χ² "
@@ -128,6 +132,8 @@ def fit_report(result, *, min_correl: float = MIN_CORRELATION) -> str:
         lines.append(f"    {key:<13} {value}")
         if key == "AIC, BIC":
             lines.append(f"    {'':<13} ({CRITERIA_CAVEAT})")
+        if key == "covariance":
+            lines.append(f"    {'':<13} ({ESTIMATOR_CAVEAT})")
     if result.message:
         lines.append(f"    {'message':<13} {result.message}")
     lines.append("[[Metrics]]")

@@ -145,7 +145,10 @@ class FitResult:
 
     # -- reporting ------------------------------------------------------------------------------
     def summary(self) -> str:
-        """A few readable lines: verdict, parameters ± standard errors, metrics."""
+        """A few readable lines: verdict, parameters ± standard errors (none, and the status
+        ``not identified``, for a scalar the data do not determine), metrics, then what ± is
+        (the covariance estimator and what it assumes), the strongest correlations, and AIC/BIC
+        with their caveat."""
         head = (
             f"{self.model_name} fit of {self.table or 'table'} ({self.loss} loss, {self.solver}): "
             f"{'converged' if self.success else 'FAILED'} in {self.steps} steps, "
@@ -169,7 +172,43 @@ class FitResult:
         lines.append("  " + metrics_text(self.metrics))
         lines.append(f"  cost {self.cost:.6g}, optimality {self.optimality:.2g}"
                      + (f"; starts {len(self.starts)}" if len(self.starts) > 1 else ""))
-        return "\n".join(lines)
+        return "\n".join(lines + self._uncertainty_lines())
+
+    def _uncertainty_lines(self) -> list[str]:
+        """What ± is, the strongest correlations, AIC/BIC and their caveat (summary's end)."""
+        from .report import CRITERIA_CAVEAT, SUMMARY_CORRELATIONS, strongest_correlations
+        from .statistics import ESTIMATOR_CAVEAT
+
+        u = self.uncertainty()
+        pairs = strongest_correlations(self)
+        corr = ", ".join(f"{a}–{b} {r:+.2f}" for a, b, r in pairs[:SUMMARY_CORRELATIONS])
+        more = f" (+{len(pairs) - SUMMARY_CORRELATIONS} more)" if len(
+            pairs) > SUMMARY_CORRELATIONS else ""
+        return [
+            f"  ± one standard error, covariance {u['estimator']}",
+            f"    ({ESTIMATOR_CAVEAT})",
+            f"  strongest correlations: {corr or 'none with |r| ≥ 0.1'}{more}",
+            f"  AIC {u['aic']:.6g}, BIC {u['bic']:.6g} ({CRITERIA_CAVEAT})",
+        ]
+
+    def uncertainty(self) -> dict:
+        """What the standard errors are and how the scalars co-vary, for people and the JSON:
+        ``estimator`` (:data:`brdffit.fitting.statistics.ESTIMATORS`), ``caveat``,
+        ``not_identified``, ``correlation`` (:attr:`correlation`, NaN where a scalar has no
+        standard error), ``strongest_correlations`` (``[name, name, r]``, ``|r| ≥ 0.1``,
+        strongest first), ``aic``, ``bic`` and their ``criteria_caveat``
+        (:func:`brdffit.fitting.report.information_criteria`)."""
+        from .report import CRITERIA_CAVEAT, information_criteria, strongest_correlations
+        from .statistics import ESTIMATOR_CAVEAT, estimator_text
+
+        ic = information_criteria(self)
+        return {
+            "estimator": estimator_text(self.covariance), "caveat": ESTIMATOR_CAVEAT,
+            "not_identified": list(self.not_identified),
+            "correlation": self.correlation.tolist(),
+            "strongest_correlations": [list(p) for p in strongest_correlations(self)],
+            "aic": ic["aic"], "bic": ic["bic"], "criteria_caveat": CRITERIA_CAVEAT,
+        }
 
     def __str__(self) -> str:
         return self.summary()
@@ -227,8 +266,11 @@ class FitResult:
         the diagonal elsewhere (:func:`brdffit.fitting.statistics.correlation`)."""
         from .statistics import correlation
 
-        return correlation(self.cov, [r["stderr"] if not r["status"].startswith("=") else
-                                      float("nan") for r in self.rows()])
+        se = np.sqrt(np.clip(np.diag(np.asarray(self.cov, float)), 0, None))
+        none = (set(self.fixed) | set(self.at_bound) | set(self.not_identified)
+                | set(self.provenance.get("tied") or {}))
+        return correlation(self.cov, [float("nan") if n in none else float(v)
+                                      for n, v in zip(self.names, se)])
 
     @property
     def aic(self) -> float:
@@ -261,10 +303,13 @@ class FitResult:
         return report_html(self)
 
     def to_dict(self) -> dict:
-        """Plain Python types only (lists for arrays)."""
+        """Plain Python types only (lists for arrays): the fields, and ``uncertainty``
+        (:meth:`uncertainty`: derived from them, for readers of the JSON; skipped when read
+        back)."""
         d = dataclasses.asdict(self)
         d["x"] = [float(v) for v in np.asarray(self.x, float)]
         d["cov"] = np.asarray(self.cov, float).tolist()
+        d["uncertainty"] = self.uncertainty()
         return d
 
     def to_json(self, path=None, indent: int = 2) -> str:

@@ -2,7 +2,7 @@
 
 The format is what :meth:`FitResult.to_json` writes: one object whose keys are the fields of
 :class:`~brdffit.fitting.result.FitResult` (``posterior``, which ``brdffit fit --mcmc --out``
-adds, is skipped), numbers that were not finite written as ``null``. ``brdffit fit -m a,b --out``
+adds, and ``uncertainty``, derived from the fields, are skipped), numbers that were not finite written as ``null``. ``brdffit fit -m a,b --out``
 writes several results as ``{"results": [...]}``, best first; :func:`pick` chooses one by model.
 
 Anything else raises :class:`ResultFormatError`, one line naming the source (the path, or
@@ -256,8 +256,9 @@ FIELDS = {
     "wall_time": _real, "timings": _mapping(_real), "table": _text, "covariance": _text,
     "optimality": _real, "provenance": _provenance, "not_identified": _names,
 }
-#: Keys a result may carry beyond its fields (skipped).
-EXTRA = ("posterior",)
+#: Keys a result may carry beyond its fields (skipped): the posterior of ``--mcmc``, and
+#: ``uncertainty``, derived from the fields (:meth:`FitResult.uncertainty`).
+EXTRA = ("posterior", "uncertainty")
 
 
 def fields(name, d, required) -> dict:

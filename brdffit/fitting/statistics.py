@@ -34,7 +34,12 @@ scalar off its bounds is **not identified** when
   do, e.g. a lobe's width when its amplitudes sit on zero, or two scalars that only enter as a
   product; or
 * one standard error spans its whole range (:math:`\sigma_z \ge 1`): the data cannot place it
-  within its bounds.
+  within its bounds (for a scalar fitted in log space ``z`` is its logarithm scaled by the
+  range, so this is a relative standard error of ``ln(hi/lo)``, ≫ 1); or
+* its variance is not a positive finite number (the pseudo-inverse dropped its direction).
+
+A relative standard error alone decides nothing for a scalar fitted linearly: a metal's
+diffuse albedo of ``1e-6 ± 1e-4`` is well determined (near zero), not unidentified.
 
 Such scalars get no standard error: they are held at their values, like those on a bound, and
 the covariance is that of the others.
@@ -48,6 +53,25 @@ import numpy as np
 from .data import FitData
 from .losses import RELATIVE_FLOOR
 from .normal_form import RANK_RTOL
+
+
+#: What each covariance estimator is, in words and symbols (the summary, the reports and the
+#: JSON name it): ``m`` residuals with non-zero weight, ``p`` scalars with a standard error.
+ESTIMATORS = {
+    "sandwich": ("sandwich (Huber–White): (JᵀJ)⁻¹ (Σ rᵢ² JᵢᵀJᵢ) (JᵀJ)⁻¹ · m/(m − p), J the "
+                 "Gauss–Newton Jacobian at the optimum; no common residual variance assumed"),
+    "gn": ("Gauss–Newton: s² (JᵀJ)⁻¹, J the Jacobian at the optimum, s² = Σr²/(m − p) the "
+           "residual variance, one for all residuals"),
+}
+#: What every estimator assumes, and what it therefore leaves out.
+ESTIMATOR_CAVEAT = ("residuals taken as independent: the model error of a fit to a measured "
+                    "BRDF is correlated from cell to cell, so ± understates the uncertainty "
+                    "there and does not cover the model error")
+
+
+def estimator_text(kind: str) -> str:
+    """:data:`ESTIMATORS` ``[kind]`` (the kind itself for one not listed)."""
+    return ESTIMATORS.get(kind, kind)
 
 
 #: The length of :func:`cell_metric_sums`.
@@ -155,10 +179,12 @@ def schur_deficient(jtj_z, keep: np.ndarray) -> np.ndarray:
 
 def beyond_range(cov_free, dxdz, keep: np.ndarray) -> np.ndarray:
     """Over the free scalars: those of ``keep`` with a standard error of at least their whole
-    range, ``σ_x ≥ |∂x/∂z|`` (module docstring)."""
-    var = np.clip(np.diagonal(np.asarray(cov_free, float)), 0.0, None)
+    range, ``σ_x ≥ |∂x/∂z|`` (module docstring), or with none at all (a variance that is not a
+    positive finite number: the pseudo-inverse dropped the scalar's direction, so ``± 0``
+    would claim a precision the data do not give)."""
+    var = np.diagonal(np.asarray(cov_free, float))
     dxdz = np.abs(np.asarray(dxdz, float))
-    return np.asarray(keep, bool) & ~(var < dxdz**2)
+    return np.asarray(keep, bool) & ~((var < dxdz**2) & (var > 0))
 
 
 def identified_covariance(jtj_z, meat_z, dxdz, sum_r2: float, m: float, interior: np.ndarray,

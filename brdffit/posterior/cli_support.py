@@ -9,8 +9,10 @@ any work (so existing outputs are refused up front, as for every other output), 
 
 Files are written atomically by the caller's ``atomic_write``. The likelihood uses its own
 cells (``--mcmc-subsample``, default 2000 stratified in θh), not the fit's ``--subsample``; it
-shares the fit's loss, cutoff, bounds, fixed values and seed. So posterior medians and the
-least-squares values differ by about a standard error when the two cell sets differ.
+shares the fit's loss, cutoff, bounds, fixed values, covariance estimator and seed. The fit is
+refitted on those cells from its optimum, so the least-squares values and errors printed beside
+the posterior are of the same cells, and the summary says how many of the fit's cells it used
+and what its intervals cover.
 """
 
 from __future__ import annotations

@@ -49,10 +49,11 @@ class McmcOptions:
     thin: int = _option(1)
     seed: int = _option(0)
     noise: object = _option(
-        kind=str, choices=("fixed", "sampled", "measured"), flag="--noise",
-        help="noise scale: fixed at the least-squares estimate, sampled, or measured "
-        "(the sample list's sigma columns); default measured when the input has "
-        "sigma columns, else fixed")
+        kind=str, choices=("sandwich", "fixed", "sampled", "measured"), flag="--noise",
+        help="noise model: sandwich (scale learned from the residuals, curvature calibrated "
+        "to the fit's sandwich covariance), fixed at the least-squares estimate, sampled, or "
+        "measured (the sample list's sigma columns); default measured when the input has "
+        "sigma columns, else sandwich (fixed for --covariance gn)")
     subsample: object = dataclasses.field(
         default_factory=_default_subsample, metadata={"option": Option(
             default=DEFAULT_SUBSAMPLE_CELLS, kind=int, low=1, high=2**24,

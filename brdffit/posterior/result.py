@@ -34,6 +34,28 @@ def _median_interval(row) -> str:
     return f"{mid:.{dec}f} −{lo:.{dec}f} +{hi:.{dec}f}"
 
 
+#: What the likelihood assumes of the residuals, by noise mode (:mod:`.likelihood`).
+_NOISE_MODELS = {
+    "sandwich": "independent residuals of the scale σ learned from them, the curvature "
+                "calibrated to their sandwich covariance (no common spread assumed)",
+    "fixed": "independent Gaussian residuals of one scale σ learned from them",
+    "sampled": "independent Gaussian residuals of one scale σ sampled under a Jeffreys prior",
+    "given": "independent Gaussian residuals of the given scale σ",
+    "measured": "independent Gaussian measurement errors of the data's own sigma columns",
+}
+
+
+def interval_meaning(noise_mode: str, n_cells: int, fit_n_cells: int | None = None) -> str:
+    """One sentence: what the 16–84 % interval of a run covers (its summary's last line)."""
+    cells = f"{n_cells} cells"
+    if fit_n_cells and fit_n_cells != n_cells:
+        cells = f"{n_cells} of the fit's {fit_n_cells} cells"
+    model = _NOISE_MODELS.get(noise_mode, _NOISE_MODELS["given"])
+    return (f"p16–p84: 68 % credible intervals on {cells}, under {model}; they do not cover "
+            f"the model error between this model and the material, which is correlated from "
+            f"cell to cell")
+
+
 @dataclasses.dataclass
 class PosteriorResult:
     """Outcome of :func:`~brdffit.posterior.sample_posterior`.
@@ -44,13 +66,16 @@ class PosteriorResult:
         sampled: column names of ``samples``/``chain`` (``free`` plus ``"sigma"`` if sampled).
         params: posterior medians by parameter (fixed scalars at their value).
         percentiles: sampled name → ``[p16, p50, p84]``. std: sampled name → posterior std.
-        x_ls: the least-squares optimum (flat, all scalars); stderr_ls: free name → its
-            least-squares standard error (NaN at a bound).
+        x_ls: the least-squares optimum on the posterior's cells (flat, all scalars);
+            stderr_ls: free name → its least-squares standard error there (NaN at a bound or
+            not identified).
         samples: ``(n, d)`` post-burn, thinned draws. chain: ``(nsteps, nwalkers, d)`` all
             steps, unthinned. log_prob: ``(nsteps, nwalkers)``.
-        noise: ``{"mode": "fixed"|"sampled"|"given", "sigma": value (median if sampled)}``.
+        noise: ``{"mode": "sandwich"|"fixed"|"sampled"|"measured"|"given", "sigma": value
+            (median if sampled), "sigma_ls": the least-squares s}``.
         prior: sampled name → a label of its prior. diagnostics: :class:`Diagnostics`.
-        settings: nwalkers, nsteps, burn, thin, seed, loss, cutoff, subsample, n_cells.
+        settings: nwalkers, nsteps, burn, thin, seed, loss, cutoff, subsample, n_cells (the
+            posterior's), fit_n_cells (those of the fit it was given).
         wall_time: seconds for the whole call; timings: ``fit``, ``compile``, ``sample``.
     """
 
@@ -94,10 +119,12 @@ class PosteriorResult:
             f"{self.wall_time:.1f} s",
         ]
         x_ls = dict(zip(self.names, np.asarray(self.x_ls, float)))
-        rows = [("", "", "p16", "p50", "p84", "least squares", "tau", "ess")]
+        rows = [("", "", "p16", "p50", "p84", "LS (same cells)", "tau", "ess")]
         for n in self.sampled:
             p = self.percentiles[n]
-            ls = f"{x_ls[n]:.5g} ± {self.stderr_ls.get(n, float('nan')):.3g}" if n in x_ls else ""
+            se = self.stderr_ls.get(n, float("nan"))
+            ls = "" if n not in x_ls else (f"{x_ls[n]:.5g} ± {se:.3g}" if np.isfinite(se)
+                                           else f"{x_ls[n]:.5g} (no error)")
             rows.append((n, "=", *(f"{v:.5g}" for v in p[:3]), ls, f"{d.tau[n]:.1f}",
                          f"{d.ess[n]:.0f}"))
         width = max([10] + [len(n) for n in [*self.sampled, *self.fixed]])  # the name column
@@ -107,7 +134,14 @@ class PosteriorResult:
         lines.append(f"  acceptance {d.acceptance:.3f} (walkers {d.acceptance_min:.2f}–"
                      f"{d.acceptance_max:.2f}); {'TOO SHORT' if d.too_short else 'chain ≥ 50 τ'}")
         lines += [f"  warning: {m}" for m in d.messages]
+        lines.append(f"  {self.interval_meaning}")
         return "\n".join(lines)
+
+    @property
+    def interval_meaning(self) -> str:
+        """What the intervals cover (:func:`interval_meaning`): the cells, the noise model."""
+        return interval_meaning(self.noise.get("mode", "given"), self.settings.get("n_cells", 0),
+                                self.settings.get("fit_n_cells"))
 
     def __str__(self) -> str:
         return self.summary()
@@ -160,13 +194,13 @@ class PosteriorResult:
             for r in self.rows()
         )
         table = ("<table><thead><tr><th>parameter</th><th>median (16–84 %)</th>"
-                 "<th>least squares</th><th>τ</th><th>ess</th></tr></thead>"
+                 "<th>least squares (same cells)</th><th>τ</th><th>ess</th></tr></thead>"
                  f"<tbody>{body}</tbody></table>")
         verdict = "chain too short (&lt; 50 τ)" if d.too_short else "chain ≥ 50 τ"
         warn = "".join(f"<p>warning: {esc(m)}</p>" for m in d.messages)
         return (f"<div class='brdffit-posterior'><p>{head}</p>{table}<p>acceptance "
                 f"{d.acceptance:.3f} (walkers {d.acceptance_min:.2f}–{d.acceptance_max:.2f}); "
-                f"{verdict}</p>{warn}</div>")
+                f"{verdict}</p>{warn}<p><small>{esc(self.interval_meaning)}</small></p></div>")
 
     def to_dict(self) -> dict:
         """Everything but the chain arrays (see :meth:`save_chain`), as plain Python values."""
@@ -179,6 +213,7 @@ class PosteriorResult:
             "stderr_ls": self.stderr_ls, "noise": self.noise, "prior": self.prior,
             "diagnostics": self.diagnostics.to_dict(), "settings": self.settings,
             "wall_time": self.wall_time, "timings": self.timings,
+            "intervals": self.interval_meaning,
         }
 
     def to_json(self, path=None, indent: int = 2) -> str:

@@ -1,6 +1,7 @@
 """``sample_posterior``: emcee ensemble sampling (differential-evolution moves) around a fit.
 
-The pipeline: least-squares fit (given, or run here) → the fit's data selection, loss and
+The pipeline: the posterior's cells → the least-squares fit on those cells (a given fit is
+refitted there from its optimum; a model is fitted) → the fit's data selection, loss and
 parameter bookkeeping (:mod:`brdffit.fitting`) → :class:`~.likelihood.LogPosterior` → walkers in a
 small ball around the optimum → ``emcee.EnsembleSampler(vectorize=True)`` → diagnostics →
 :class:`~.result.PosteriorResult`.
@@ -10,8 +11,10 @@ Defaults (chosen so a default ``ggx`` run, fit included, stays well under a minu
 :data:`DEFAULT_SUBSAMPLE` cells (one per ``θh`` stratum, so the specular peak is always
 represented), and the walkers, steps and burn-in of :class:`~.options.McmcOptions` (from
 :mod:`.defaults`). A subsample carries less information than the whole table,
-so its posterior is *wider* than a full-table one (by about ``sqrt(N/n)``): pass
-``subsample=None`` for all cells, at a cost proportional to the cell count.
+so its posterior is *wider* than a full-table one (by about ``sqrt(N/n)`` for independent
+residuals): pass ``subsample=None`` for all cells, at a cost proportional to the cell count.
+The least-squares values and errors beside it are those of the same cells, and its summary
+says how many cells of the fit's it used.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from .likelihood import (
     log_posterior_batch,
     n_observations,
     noise_setup,
+    sandwich_adjustment,
 )
 from .priors import build_prior
 from .from_fit import loss_of, problem_from
@@ -107,13 +111,24 @@ def _batched(post, half):
 
 
 def _least_squares(table, result_or_model, loss, fit_kwargs):
-    """The given :class:`FitResult`, or a fresh fit of the given model (same cells as the
-    posterior, so the walkers start at the mode of the likelihood they sample)."""
-    if isinstance(result_or_model, FitResult):
-        return result_or_model, 0.0
+    """The least-squares fit on the posterior's cells, so that the walkers start at the mode of
+    the likelihood they sample and the least-squares errors beside the posterior are of the
+    same cells: a fresh fit of the given model, or the given :class:`FitResult` refitted there
+    from its own optimum (its fixed scalars held, its loss and covariance kept; a few steps
+    when the cells are those of the fit). A refit that fails keeps the given result."""
     t = time.perf_counter()
-    result = run_fit(table, get_model(result_or_model), loss=loss or "log", **fit_kwargs)
-    return result, time.perf_counter() - t
+    if not isinstance(result_or_model, FitResult):
+        result = run_fit(table, get_model(result_or_model), loss=loss or "log", **fit_kwargs)
+        return result, time.perf_counter() - t
+    given = result_or_model
+    x = dict(zip(given.names, np.asarray(given.x, float)))
+    kwargs = {**fit_kwargs, "fixed": {n: x[n] for n in given.fixed} or None,
+              "init": {n: x[n] for n in given.free}, "covariance": given.covariance}
+    refit = run_fit(table, get_model(given.model_name), loss=loss or given.loss, throw=False,
+                    **kwargs)
+    if not np.isfinite(refit.cost):
+        return given, time.perf_counter() - t
+    return refit, time.perf_counter() - t
 
 
 def _weighting_of(result_or_model) -> str:
@@ -140,6 +155,11 @@ def _posterior(result, samples, *, loss, cutoff, subsample, seed, bounds, noise,
     x_ls = np.asarray(result.x, float)[free]
     s_hat = least_squares_sigma(problem, x_ls, sel.data)
     sigma, sample_sigma, extra = noise_setup(noise, s_hat)
+    adjust = None
+    if noise == "sandwich":
+        keep = [n not in result.at_bound and n not in result.not_identified
+                for n in np.asarray(result.names)[free]]
+        adjust = jnp.asarray(sandwich_adjustment(problem, x_ls, sel.data, keep), dtype)
     box = build_prior(model, free, lo, hi, prior, extra)
     blo, bhi = np.asarray(box.lo, float), np.asarray(box.hi, float)
     center = np.concatenate([x_ls, [sigma]]) if sample_sigma else x_ls
@@ -147,8 +167,11 @@ def _posterior(result, samples, *, loss, cutoff, subsample, seed, bounds, noise,
     m = n_observations(sel.data)  # the standard error of s is about s / sqrt(2m)
     scale = np.concatenate([scale, [sigma / np.sqrt(2.0 * m)]]) if sample_sigma else scale
     inside = np.clip(x_ls, blo[: len(free)], bhi[: len(free)])
+    adjusted = {} if adjust is None else {
+        "adjust": adjust, "anchor": jnp.asarray(x_ls, dtype),
+        "lo": jnp.asarray(lo[free], dtype), "hi": jnp.asarray(hi[free], dtype)}
     post = LogPosterior(problem, sel.data, box, jnp.asarray(sigma, dtype),
-                        float(m), jnp.asarray(inside, dtype), sample_sigma)
+                        float(m), jnp.asarray(inside, dtype), sample_sigma, **adjusted)
     mode = "sampled" if sample_sigma else (noise if isinstance(noise, str) else "given")
     return post, sel, center, scale, {"mode": mode, "sigma": float(sigma), "sigma_ls": s_hat}
 
@@ -268,11 +291,16 @@ def sample_posterior(table, result_or_model, options=None, mcmc: McmcOptions | N
         nwalkers, nsteps, burn, thin: the ensemble and the chain (``burn`` steps dropped,
             every ``thin``-th kept for the percentiles; diagnostics use the unthinned chain).
         seed: seeds the start ball, emcee's generator and the subsample; same seed, same chain.
-        noise: ``"fixed"`` (least-squares ``s``), ``"sampled"``, ``"measured"`` (the data's
-            own ``sigma`` columns) or a number (see :mod:`.likelihood`). Default: ``"measured"``
-            when the data carry ``sigma``, else ``"fixed"``.
+        noise: ``"sandwich"`` (``σ`` learned from the residuals, the curvature calibrated to
+            the sandwich covariance), ``"fixed"`` (least-squares ``s``), ``"sampled"``,
+            ``"measured"`` (the data's own ``sigma`` columns) or a number (see
+            :mod:`.likelihood`). Default: ``"measured"`` when the data carry ``sigma``, else
+            ``"sandwich"`` (``"fixed"`` for a fit whose covariance is ``"gn"``), so that near
+            the mode the posterior's covariance is the fit's estimator on the same cells.
         subsample: cells the likelihood uses: a count, a fraction, a ``Subsample`` or ``None``
-            (all). Default: 2000 cells stratified in ``θh``.
+            (all). Default: 2000 cells stratified in ``θh``. A given fit is refitted on these
+            cells from its own optimum (its fixed scalars held), so that the least-squares
+            values and errors reported beside the posterior are of the same cells.
         prior: name → ``(lo, hi)`` / ``Uniform`` / ``LogUniform`` / ``Normal`` (see
             :mod:`.priors`); default uniform within the physical bounds.
         loss, cutoff, bounds: as for :func:`brdffit.fit` (``loss`` defaults to the result's).
@@ -310,8 +338,8 @@ def _sample(table, result_or_model, fit: FitOptions, mcmc: McmcOptions, progress
     if weighting is None:
         weighting = _weighting_of(result_or_model)
     noise = mcmc.noise
-    if noise is None:
-        noise = "measured" if getattr(samples, "sigma", None) is not None else "fixed"
+    if noise is None and getattr(samples, "sigma", None) is not None:
+        noise = "measured"
     if noise == "measured" and getattr(samples, "sigma", None) is None:
         raise ConfigError(
             "noise='measured' needs measurement uncertainties: a sample list with a sigma "
@@ -322,6 +350,8 @@ def _sample(table, result_or_model, fit: FitOptions, mcmc: McmcOptions, progress
     fit_kwargs = {"cutoff": cutoff, "subsample": subsample, "seed": seed, "bounds": bounds,
                   "fixed": fit.fixed or None, "init": fit.init or None, "weighting": weighting}
     result, t_fit = _least_squares(table, result_or_model, loss, fit_kwargs)
+    if noise is None:  # the posterior's covariance near the mode is the fit's estimator
+        noise = "fixed" if result.covariance == "gn" else "sandwich"
     post, sel, center, scale, noise_info = _posterior(
         result, samples, loss=loss, cutoff=cutoff, subsample=subsample, seed=seed,
         bounds=bounds, noise=noise, prior=mcmc.prior, weighting=weighting,
@@ -333,7 +363,8 @@ def _sample(table, result_or_model, fit: FitOptions, mcmc: McmcOptions, progress
         default_moves() if mcmc.moves is None else mcmc.moves, progress)
     run = {"nwalkers": int(nwalkers), "nsteps": int(nsteps), "burn": int(burn), "thin": int(thin),
            "seed": int(seed), "loss": loss, "cutoff": cutoff, "subsample": repr(subsample),
-           "weighting": weighting}
+           "weighting": weighting, "fit_n_cells": (result_or_model.n_cells if isinstance(
+               result_or_model, FitResult) else result.n_cells)}
     out = _assemble(result, post, sel, sampler, noise_info,
                     run, {"fit": t_fit, "compile": t_compile, "sample": t_sample})
     if mcmc.chain_path is not None:
