@@ -24,7 +24,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .base import NDF
+from .base import NDF, as_float
 from .numerical import N_QUAD, N_QUAD_TABLE, N_THETA, ProjectedAreaTable, projected_area_normal
 
 
@@ -43,8 +43,8 @@ class ABC(NDF):
     c: jax.Array
 
     def __init__(self, b, c):
-        self.b = jnp.asarray(b, jnp.result_type(float))
-        self.c = jnp.asarray(c, jnp.result_type(float))
+        self.b = as_float(b)
+        self.c = as_float(c)
 
     def S(self, wm):  # noqa: N802 (the paper's symbol)
         """The unnormalised shape ``(1 + B(1 − m_z))^{−C}`` (Löw eq. 15), 0 for ``m_z ≤ 0``."""

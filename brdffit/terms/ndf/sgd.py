@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 
 from .._math import safe_sqrt, tan2_theta
-from .base import NDF
+from .base import NDF, as_float
 from .numerical import N_QUAD, N_QUAD_TABLE, N_THETA, ProjectedAreaTable, projected_area_normal
 
 #: :func:`bagher_g1` caps the exponent ``((θ − θ0)/w)^k`` here: past it ``G1`` is 0 already
@@ -42,8 +42,8 @@ class SGD(NDF):
     p: jax.Array
 
     def __init__(self, alpha, p):
-        self.alpha = jnp.asarray(alpha, jnp.result_type(float))
-        self.p = jnp.asarray(p, jnp.result_type(float))
+        self.alpha = as_float(alpha)
+        self.p = as_float(p)
 
     def shape(self, wm):
         """``P22(tan²θm)/(π cos⁴θm)`` (bbm's ``sgd_base::eval``), 0 for ``m_z ≤ 0``."""

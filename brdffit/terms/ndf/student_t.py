@@ -35,7 +35,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .base import NDF, clamp_alpha
+from .base import NDF, as_float, clamp_alpha
 from .numerical import N_QUAD_TABLE, N_THETA, ProjectedAreaTable
 
 #: ``γ`` is clamped to at least this: ``Λ`` diverges as ``γ → 3/2``.
@@ -54,7 +54,7 @@ class StudentT(NDF):
     table: ProjectedAreaTable | None
 
     def __init__(self, alpha, gamma, *, table=None):
-        self.alpha = clamp_alpha(jnp.asarray(alpha, jnp.result_type(float)))
+        self.alpha = clamp_alpha(as_float(alpha))
         self.gamma = jnp.maximum(jnp.asarray(gamma, self.alpha.dtype), GAMMA_MIN)
         self.table = table
 
