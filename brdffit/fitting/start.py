@@ -188,14 +188,20 @@ def by_name(feat: Features) -> dict:
 def guess(model, feat: Features) -> dict:
     """A starting parameter dict for ``model`` from measured :class:`Features`: its start hook's
     values (``model.start``) or :func:`by_name`, each moved inside its bounds by a margin of
-    1e-3 of the range."""
+    1e-3 of the range in the coordinate the fit uses (``log`` for a log parameter: a margin of
+    the linear range would put a start no lower than 1e-3 of the upper bound)."""
     values = model.start(feat) if model.start is not None else by_name(feat)
     out = {}
     for p in model.params:
         if p.name in values:
             v = np.broadcast_to(np.asarray(values[p.name], float), p.shape)
-            width = p.upper - p.lower
-            out[p.name] = np.clip(v, p.lower + 1e-3 * width, p.upper - 1e-3 * width)
+            if p.log:
+                lo, hi = np.log(p.lower), np.log(p.upper)
+                s = np.clip(np.log(np.maximum(v, p.lower)), lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo))
+                out[p.name] = np.exp(s)
+            else:
+                width = p.upper - p.lower
+                out[p.name] = np.clip(v, p.lower + 1e-3 * width, p.upper - 1e-3 * width)
     return out
 
 

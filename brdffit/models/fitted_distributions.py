@@ -197,19 +197,23 @@ def sgd(p, wi, wo):
     return lambert(p["diffuse"], wi, wo) + p["ks"] * d * g1(wi) * g1(wo) * fresnel * denom
 
 
-#: ``α`` of the SGD at ``p = 0`` (``e^{−t²/α}``) with the half width of a GGX lobe of roughness
-#: ``α_g`` (half at ``t² = α_g²(√2 − 1)``): ``α = α_g² (√2 − 1)/ln 2``.
-SGD_PER_GGX2 = float((np.sqrt(2.0) - 1.0) / np.log(2.0))
+#: The start's ``p``: near the peak, where ``α + t²/α ≪ 1``, ``P22 ≈ α^{−p}(1 + t²/α²)^{−p}``, a
+#: core of width ``α`` whose tail ``e^{−t²/α}`` cuts beyond ``t ≈ √α``; Bagher's fits have ``p``
+#: from 0 to 1.4.
+SGD_START_P = 1.0
 
 
 def _sgd_start(features):
-    """``α`` from the GGX width, ``p = 0.5``, ``F0`` from the features, ``F1 = 0``, the masking
-    term off (``Λ`` at its lower bound) and ``k_s`` from the peak height
+    """``p = 1`` and the ``α`` whose core has the measured GGX half width (``(1 + t²/α²)^{−p}``
+    halves at ``t² = α²(2^{1/p} − 1)``, GGX at ``α_g²(√2 − 1)``), ``F0`` from the features,
+    ``F1 = 0``, the masking term off (``Λ`` at its lower bound) and ``k_s`` from the peak height
     ``H = k_s e^{−α} α^{−p} F0/π²`` (normal incidence)."""
-    alpha = float(np.clip(SGD_PER_GGX2 * features.alpha**2, 2e-5, 0.5))
+    p = SGD_START_P
+    alpha = float(np.clip(features.alpha * np.sqrt((np.sqrt(2.0) - 1.0) / (2.0 ** (1.0 / p) - 1.0)),
+                          2e-5, 0.5))
     f0 = np.clip(np.asarray(features.f0, float), 0.02, 0.95)
-    ks = np.asarray(features.height) * np.pi**2 * alpha**0.5 * np.exp(alpha) / f0
-    return {"diffuse": features.diffuse, "ks": ks, "alpha": np.full(3, alpha), "p": 0.5,
+    ks = np.asarray(features.height) * np.pi**2 * alpha**p * np.exp(alpha) / f0
+    return {"diffuse": features.diffuse, "ks": ks, "alpha": np.full(3, alpha), "p": p,
             "f0": f0, "f1": 0.0}
 
 

@@ -26,8 +26,9 @@ density is ``P2(q) ∝ (1 + q²/s)^{½−γ}`` with ``s = γ − 1`` and, with `
 (the paper's eqs. 13–15: ``S1`` and ``S2``; it then approximates the incomplete beta ``S2`` by a
 rational fit, eqs. 22–23, which bbm uses). JAX cannot differentiate ``I_x`` in its shape
 parameter, so :meth:`StudentT.Lambda` is the numerical Smith ``Λ`` of the weak white furnace
-(:mod:`.numerical`, as for GTR), with the derivative in ``γ`` that a fit needs; the closed form
-above is its check (``tests/test_ndf_literature.py``).
+(:mod:`.numerical`, as for GTR), with the derivative in ``γ`` that a fit needs, plus the slopes
+beyond the quadrature's last node in closed form (:meth:`StudentT.tail`); the closed form above is
+its check (``tests/test_ndf_literature.py``: ``G1`` within 1e-6 for γ from 1.7 to 10).
 """
 
 from __future__ import annotations
@@ -36,7 +37,8 @@ import jax
 import jax.numpy as jnp
 
 from .base import NDF, as_float, clamp_alpha
-from .numerical import N_QUAD_TABLE, N_THETA, ProjectedAreaTable
+from .._math import safe_sqrt, tan2_theta
+from .numerical import N_QUAD_TABLE, N_THETA, TAN_THETA_M_MAX, ProjectedAreaTable
 
 #: ``γ`` is clamped to at least this: ``Λ`` diverges as ``γ → 3/2``.
 GAMMA_MIN = 1.5 + 1e-3
@@ -74,6 +76,16 @@ class StudentT(NDF):
         return ProjectedAreaTable.build(self.D, self.alpha, n_theta=n_theta, n_quad=n_quad,
                                         dtype=self.alpha.dtype)
 
+    def tail(self):
+        r"""The slopes beyond the quadrature's last node ``R`` (``tan θm = 1e8``): for ``r > R``,
+        ``P22 ≈ (πα²)^{-1}(r²/(sα²))^{-γ}`` and ``(ω·m̃)⁺ ≈ r sin θ cos⁺φ``, so they add
+        ``T tan θ`` to ``Λ`` with ``T = 2 (sα²)^γ R^{3−2γ} / (πα² (2γ − 3))`` (``R^{3−2γ}``
+        decays slowly near ``γ = 3/2``: 6e-4 at ``γ = 1.7``)."""
+        s, g = self.gamma - 1.0, self.gamma
+        log_t = (g * jnp.log(s * self.alpha**2) + (3.0 - 2.0 * g) * jnp.log(TAN_THETA_M_MAX)
+                 - jnp.log(jnp.pi * self.alpha**2 * (2.0 * g - 3.0)))
+        return 2.0 * jnp.exp(log_t)
+
     def Lambda(self, w):  # noqa: N802
         table = self.lambda_table() if self.table is None else self.table
-        return table.Lambda(w)
+        return table.Lambda(w) + self.tail() * safe_sqrt(tan2_theta(w))
