@@ -196,9 +196,8 @@ def guess(model, feat: Features) -> dict:
         if p.name in values:
             v = np.broadcast_to(np.asarray(values[p.name], float), p.shape)
             if p.log:
-                lo, hi = np.log(p.lower), np.log(p.upper)
-                s = np.clip(np.log(np.maximum(v, p.lower)), lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo))
-                out[p.name] = np.exp(s)
+                ratio = (p.upper / p.lower) ** 1e-3
+                out[p.name] = np.clip(v, p.lower * ratio, p.upper / ratio)
             else:
                 width = p.upper - p.lower
                 out[p.name] = np.clip(v, p.lower + 1e-3 * width, p.upper - 1e-3 * width)

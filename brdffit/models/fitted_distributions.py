@@ -76,6 +76,11 @@ LOW_ETA = Param("eta", (), 1.0, 100.0, 1.5, "index of refraction η of the Fresn
                 log=True, scan=False)
 
 
+def _within(param, value):
+    """``value`` clipped to ``param``'s bounds (a start hook names values inside them)."""
+    return np.clip(value, param.lower, param.upper)
+
+
 def _vis(wi, wo):
     return (cos_theta(wi) > 0) & (cos_theta(wo) > 0)
 
@@ -118,8 +123,9 @@ def _low_start(features, normalization):
     eta = float(np.clip(ior_from_f0(f0), 1.1, 20.0))
     b = 1.0 / (4.0 * alpha**2) if normalization == 1.0 else 2.0 / alpha**2
     f_normal = ((eta - 1.0) / (eta + 1.0)) ** 2
-    return {"diffuse": features.diffuse, "a": normalization * np.asarray(features.height) / f_normal,
-            "b": b, "c": 2.0, "eta": eta}
+    a = normalization * np.asarray(features.height) / f_normal
+    return {"diffuse": features.diffuse, "a": _within(LOW_A, a), "b": _within(LOW_B, b), "c": 2.0,
+            "eta": eta}
 
 
 LOW_SMOOTH_MODEL = register(
@@ -213,7 +219,7 @@ def _sgd_start(features):
                           2e-5, 0.5))
     f0 = np.clip(np.asarray(features.f0, float), 0.02, 0.95)
     ks = np.asarray(features.height) * np.pi**2 * alpha**p * np.exp(alpha) / f0
-    return {"diffuse": features.diffuse, "ks": ks, "alpha": np.full(3, alpha), "p": p,
+    return {"diffuse": features.diffuse, "ks": _within(SGD_PARAMS[1], ks), "alpha": np.full(3, alpha), "p": p,
             "f0": f0, "f1": 0.0}
 
 
