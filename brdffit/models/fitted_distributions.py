@@ -219,8 +219,8 @@ def _sgd_start(features):
                           2e-5, 0.5))
     f0 = np.clip(np.asarray(features.f0, float), 0.02, 0.95)
     ks = np.asarray(features.height) * np.pi**2 * alpha**p * np.exp(alpha) / f0
-    return {"diffuse": features.diffuse, "ks": _within(SGD_PARAMS[1], ks), "alpha": np.full(3, alpha), "p": p,
-            "f0": f0, "f1": 0.0}
+    return {"diffuse": features.diffuse, "ks": _within(SGD_PARAMS[1], ks),
+            "alpha": np.full(3, alpha), "p": p, "f0": f0, "f1": 0.0}
 
 
 SGD_MODEL = register(
