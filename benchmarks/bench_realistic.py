@@ -136,7 +136,8 @@ def fit_row(table, model: str) -> dict:
         "success": res.success, "cost": res.cost, "optimality": res.optimality,
         "rmse_cosine": res.metrics["rmse_cosine"], "rmse_log": res.metrics["rmse_log"],
         "at_bound": " ".join(sorted(res.at_bound)), "finite": finite,
-        "alpha": res.params.get("alpha", float("nan")), "status": res.status, "result": res,
+        "alpha": float(np.mean(res.params.get("alpha", float("nan")))),  # RGB (sgd): the mean
+        "status": res.status, "result": res,
     }
 
 

@@ -57,6 +57,13 @@ WHITE = {
     "mitsuba-roughconductor-beckmann": dict(alpha=0.3, eta=0.02, k=12.0),
     "mitsuba-roughconductor-tint": dict(alpha=0.3, specular_reflectance=1.0),
     "gltf-pbr": dict(base_color=1.0, metallic=1.0, roughness=0.5),
+    # Fitted-distribution models (brdffit/models/fitted_distributions.py). Löw's and Bagher's
+    # scales are unnormalised (no energy promise): settings whose albedo lies in (0.3, 1].
+    # sgd at k_s = πK/4 with F = 1 and G1 = 1 (bbm's Cook normalisation π, not 4).
+    "low-smooth": dict(diffuse=0.0, a=6.0, b=30.0, c=1.5, eta=100.0),
+    "low-microfacet": dict(diffuse=0.0, a=3.0, b=30.0, c=1.5, eta=100.0),
+    "sgd": dict(diffuse=0.0, ks=11.4, alpha=0.05, p=0.5, f0=1.0, f1=0.0),
+    "student-t": dict(diffuse=0.0, f0=1.0, alpha=0.3, gamma=3.0),
 }
 
 

@@ -188,14 +188,19 @@ def by_name(feat: Features) -> dict:
 def guess(model, feat: Features) -> dict:
     """A starting parameter dict for ``model`` from measured :class:`Features`: its start hook's
     values (``model.start``) or :func:`by_name`, each moved inside its bounds by a margin of
-    1e-3 of the range."""
+    1e-3 of the range in the coordinate the fit uses (``log`` for a log parameter: a margin of
+    the linear range would put a start no lower than 1e-3 of the upper bound)."""
     values = model.start(feat) if model.start is not None else by_name(feat)
     out = {}
     for p in model.params:
         if p.name in values:
             v = np.broadcast_to(np.asarray(values[p.name], float), p.shape)
-            width = p.upper - p.lower
-            out[p.name] = np.clip(v, p.lower + 1e-3 * width, p.upper - 1e-3 * width)
+            if p.log:
+                ratio = (p.upper / p.lower) ** 1e-3
+                out[p.name] = np.clip(v, p.lower * ratio, p.upper / ratio)
+            else:
+                width = p.upper - p.lower
+                out[p.name] = np.clip(v, p.lower + 1e-3 * width, p.upper - 1e-3 * width)
     return out
 
 

@@ -28,6 +28,12 @@ def clamp_alpha(alpha):
     return jnp.maximum(jnp.asarray(alpha), ALPHA_MIN)
 
 
+def as_float(x):
+    """``x`` as a JAX array of a floating dtype: its own, or the default float for integers."""
+    x = jnp.asarray(x)
+    return x if jnp.issubdtype(x.dtype, jnp.floating) else x.astype(jnp.result_type(float))
+
+
 class NDF(eqx.Module):
     """Abstract base: ``D(wm)`` and ``Lambda(w)`` over batches of unit vectors ``(..., 3)``."""
 
