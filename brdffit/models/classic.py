@@ -201,6 +201,11 @@ def _peak(features):
     return np.maximum(np.asarray(features.height, float), 1e-6)
 
 
+def _ks(value):
+    """A start of ``specular`` inside its bounds (a wide lobe on a bright peak asks for more)."""
+    return np.clip(value, 1e-4, SPECULAR.upper)
+
+
 def _alpha_b(features):
     return float(np.clip(BECKMANN_PER_GGX * features.alpha, 2e-3, 1.0))
 
@@ -213,14 +218,14 @@ def start_ngan_cook_torrance(features) -> dict:
     """``f_s(0) = k_s F0/(π² α²)``."""
     a, f0 = _alpha_b(features), _f0(features)
     return {"diffuse": features.diffuse, "alpha": a, "f0": f0,
-            "specular": _peak(features) * np.pi**2 * a * a / f0}
+            "specular": _ks(_peak(features) * np.pi**2 * a * a / f0)}
 
 
 def start_low_cook_torrance(features) -> dict:
     """``f_s(0) = k_s F(η, 1)/(π α²)``, ``F(η, 1) = F0``."""
     a, f0 = _alpha_b(features), _f0(features)
     return {"diffuse": features.diffuse, "alpha": a, "eta": float(ior_from_f0(f0)),
-            "specular": _peak(features) * np.pi * a * a / f0}
+            "specular": _ks(_peak(features) * np.pi * a * a / f0)}
 
 
 def _start_ashikhmin_shirley(features, fresnel: str) -> dict:
@@ -228,7 +233,7 @@ def _start_ashikhmin_shirley(features, fresnel: str) -> dict:
     a, f0 = _alpha_b(features), _f0(features)
     n = 2.0 / a**2
     out = {"diffuse": features.diffuse, "exponent": n,
-           "specular": _peak(features) * 8.0 * np.pi / ((n + 1.0) * f0)}
+           "specular": _ks(_peak(features) * 8.0 * np.pi / ((n + 1.0) * f0))}
     out.update({"f0": f0} if fresnel == "f0" else {"eta": float(ior_from_f0(f0))})
     return out
 
@@ -236,14 +241,14 @@ def _start_ashikhmin_shirley(features, fresnel: str) -> dict:
 def start_ward(features) -> dict:
     """``f_s(0) = k_s/(4π α²)``."""
     a = _alpha_b(features)
-    return {"diffuse": features.diffuse, "alpha": a, "specular": _peak(features) * 4.0 * np.pi * a * a}
+    return {"diffuse": features.diffuse, "alpha": a, "specular": _ks(_peak(features) * 4.0 * np.pi * a * a)}
 
 
 def start_phong(features, suffix: str = "") -> dict:
     """``f_s(0) = k_s (n + 2)/(2π)``, the lobe about the mirror direction (``ψ = 3π/4``)."""
     n = 0.5 / _alpha_b(features) ** 2
     return {"diffuse": features.diffuse, "exponent" + suffix: n, "psi" + suffix: MIRROR,
-            "specular" + suffix: _peak(features) * 2.0 * np.pi / (n + 2.0)}
+            "specular" + suffix: _ks(_peak(features) * 2.0 * np.pi / (n + 2.0))}
 
 
 #: ``ψ`` of the Lafortune lobe about the mirror direction, ``(C_xy, C_z) ∝ (−1, 1)``.
