@@ -175,3 +175,13 @@ def test_parameters_recovered_from_synthetic_merl_cells(name):
 def test_every_classic_model_has_a_published_form_or_is_a_multi_lobe_lafortune():
     forms = {f.model for f in brdffit.models.published_forms().values()}
     assert set(CLASSIC) - forms == {"lafortune-2", "lafortune-3"}
+
+
+@pytest.mark.parametrize("stem", STEMS)
+def test_bounds_contain_every_published_value(stem):
+    """A published fit is a point of its model's box: it can start, score and bound a re-fit."""
+    fits, _ = published.load(stem)
+    for fit in fits:
+        model, params = published_params(fit)
+        for name, value in params.items():
+            model.param(name).check_bounds(value)  # raises naming the parameter
