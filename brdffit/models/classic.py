@@ -28,8 +28,8 @@ it; the models here are transcriptions of bbm's, so that a published line, conve
 * ``lafortune``, ``lafortune-2``, ``lafortune-3``: Lafortune et al. 1997 with Ngan's
   normalisation, one to three lobes; see :func:`lafortune_lobe`.
 
-Each model's docstring-level details (and the conventions bbm picks) are in its function's
-docstring and in ``docs/literature-models-classic.md``.
+The conventions bbm picks (which parameter is an index and which a reflectance, where ``π``
+goes) are in each lobe's docstring and in ``docs/literature-models-classic.md``.
 """
 
 from __future__ import annotations
@@ -71,9 +71,10 @@ def _vis(wi, wo):
 
 
 def cook_torrance(ndf, fresnel, wi, wo):
-    r"""``D G F / (π c_i c_o)`` with the V-groove ``G``: bbm's ``microfacet<…, microfacet_n::Cook>``
-    (Cook & Torrance 1982 eq. 3 with ``π`` for their ``π``), i.e. ``4/π`` times
-    :func:`~brdffit.terms.microfacet.microfacet_specular`'s ``D G F / (4 c_i c_o)``."""
+    r"""``D G F / (π c_i c_o)`` with the V-groove ``G``: Cook & Torrance 1982's specular term
+    ``R_s = F D G / (π (n·l)(n·v))``, bbm's ``microfacet<…, microfacet_n::Cook>``; that is
+    ``4/π`` times :func:`~brdffit.terms.microfacet.microfacet_specular`'s
+    ``D G F / (4 c_i c_o)`` (Walter et al. 2007's normalisation)."""
     return (4.0 / jnp.pi) * microfacet_specular(ndf, fresnel, wi, wo, g2=G2_vgroove)
 
 
