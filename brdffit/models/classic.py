@@ -277,6 +277,18 @@ def _added_lobes(params, lobes: int) -> list[dict]:
     ]
 
 
+def start_lafortune(features, lobes: int) -> dict:
+    """Lobe 1 as :func:`start_phong`; each further lobe broader (exponent ``n/8``, ``n/64``) with ``ADDED_SHARE`` of its ``k_s``: the start of a
+    many-lobe fit that is itself the base of another (``lafortune-2`` under ``lafortune-3``)."""
+    first = start_phong(features, "_1")
+    out = dict(first)
+    for k in range(2, lobes + 1):
+        out.update({f"specular_{k}": ADDED_SHARE * np.asarray(first["specular_1"]),
+                    f"psi_{k}": MIRROR,
+                    f"exponent_{k}": max(1.0, first["exponent_1"] / 8.0 ** (k - 1))})
+    return out
+
+
 # -- registration ---------------------------------------------------------------------------------
 def _register(name, description, params, fn, reference, start=None, refines=None):
     return register(Model(name=name, description=description, params=params, fn=fn,
@@ -347,10 +359,11 @@ _register("lafortune",
           start_phong)
 _register("lafortune-2", "Lambert + two Lafortune lobes with Ngan 2005's normalisation",
           _lafortune_params(2), _lafortune(2),
-          f"Lafortune et al. 1997 eq. 4; {NGAN}", refines=("lafortune", partial(_added_lobes, lobes=2)))
+          f"Lafortune et al. 1997 eq. 4; {NGAN}", partial(start_lafortune, lobes=2),
+          refines=("lafortune", partial(_added_lobes, lobes=2)))
 _register("lafortune-3", "Lambert + three Lafortune lobes with Ngan 2005's normalisation",
           _lafortune_params(3), _lafortune(3),
-          f"Lafortune et al. 1997 eq. 4; {NGAN}",
+          f"Lafortune et al. 1997 eq. 4; {NGAN}", partial(start_lafortune, lobes=3),
           refines=("lafortune-2", partial(_added_lobes, lobes=3)))
 
 
