@@ -59,7 +59,7 @@ SPECULAR = Param("specular", (3,), 0.0, 4.0, 0.1, "specular scale k_s (RGB), bbm
 ALPHA = Param("alpha", (), 1e-3, 2.5, 0.1, "Beckmann roughness α (bbm's roughness)", log=True)
 F0 = Param("f0", (), 0.0, 1.0, 0.5, "Schlick's F0, scalar (bbm's eta of Ngan's Cook–Torrance, "
            "fresnelReflectance of Ngan's Ashikhmin–Shirley)")
-ETA = Param("eta", (), 1.0, 20.0, 1.5, "index of refraction η of the dielectric Fresnel, scalar")
+ETA = Param("eta", (), 1.0, 100.0, 1.5, "index of refraction η of the dielectric Fresnel, scalar")
 #: Phong-like exponents: Ngan's Blinn–Phong fits span 1.45–1.2e5, Löw's Ashikhmin–Shirley
 #: 0.038–6.2e5.
 EXPONENT = Param("exponent", (), 0.01, 1e6, 100.0, "lobe exponent n (bbm's sharpness)", log=True)
