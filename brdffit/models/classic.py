@@ -138,7 +138,7 @@ def lafortune_lobe(psi, exponent, wi, wo):
     (Lafortune et al. 1997 eq. 4, times Ngan's factor). The value depends on ``(C_xy, C_z)``
     only through its direction, so the lobe takes ``(C_xy, C_z) = (cos ψ, sin ψ)``:
     ``ψ = 3π/4`` is the modified Phong lobe about the mirror direction (:func:`phong`), larger
-    ``ψ`` tilts it towards grazing (``ψ = π``: ``C_z = 0``), ``ψ < π/2`` makes it
+    ``ψ`` tilts it towards grazing (``ψ = π``: ``C_z = 0``; beyond, ``C_z < 0``), ``ψ < π/2`` makes it
     retro-reflective. The base ``d/max(|C_xy|, |C_z|) ≤ 1`` is formed first, so the lobe stays
     finite where bbm's ``pow(max(C_z², C_xy²), n/2)`` underflows to 0 (``n`` above about 1300 at
     ``|C| ≈ 0.58``) and bbm's value is ``0/0``."""
@@ -337,6 +337,11 @@ _register("ngan-blinn-phong",
           lambda features: {k: v for k, v in start_phong(features).items() if k != "psi"})
 
 
+#: ``ψ`` up to ``5π/4``: past ``π`` the lobe has ``C_z < 0`` and leans further towards grazing
+#: (with ``ψ ≤ π`` the fabrics' fits end at ``C_z = 0``, where Ngan's fits of them lie too).
+PSI_MAX = 1.25 * float(np.pi)
+
+
 def _lafortune_params(lobes):
     params = [DIFFUSE]
     for k in ([""] if lobes == 1 else [f"_{k}" for k in range(1, lobes + 1)]):
@@ -344,7 +349,7 @@ def _lafortune_params(lobes):
         params += [
             Param("specular" + k, (3,), 0.0, 4.0, 0.1, f"specular scale k_s (RGB){which}",
                   per_channel=True),
-            Param("psi" + k, (), 0.0, float(np.pi), MIRROR,
+            Param("psi" + k, (), 0.0, PSI_MAX, MIRROR,
                   f"direction ψ of (C_xy, C_z) = (cos ψ, sin ψ){which}: 3π/4 the mirror lobe"),
             Param("exponent" + k, (), 0.5, 1e6, 100.0, f"exponent n{which} (bbm's sharpness)",
                   log=True),
