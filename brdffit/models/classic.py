@@ -245,6 +245,14 @@ def start_ward(features) -> dict:
     return {"diffuse": features.diffuse, "alpha": a, "specular": _ks(_peak(features) * 4.0 * np.pi * a * a)}
 
 
+#: ``ψ`` of the Lafortune lobe about the mirror direction, ``(C_xy, C_z) ∝ (−1, 1)``.
+MIRROR = 0.75 * np.pi
+#: An added (broad) lobe's start: just past the mirror direction towards grazing, where Ngan's
+#: fits all lie (``|C_xy| ≥ C_z``), off the kink of the normalisation ``max(|C_xy|, |C_z|)ⁿ``
+#: at ``3π/4`` that the first lobe starts on.
+PSI_START = 0.77 * np.pi
+
+
 def start_phong(features, suffix: str = "") -> dict:
     """``f_s(0) = k_s (n + 2)/(2π)``, the lobe about the mirror direction (``ψ = 3π/4``)."""
     n = 0.5 / _alpha_b(features) ** 2
@@ -252,8 +260,6 @@ def start_phong(features, suffix: str = "") -> dict:
             "specular" + suffix: _ks(_peak(features) * 2.0 * np.pi / (n + 2.0))}
 
 
-#: ``ψ`` of the Lafortune lobe about the mirror direction, ``(C_xy, C_z) ∝ (−1, 1)``.
-MIRROR = 0.75 * np.pi
 #: The start of an added Lafortune lobe: this share of the fitted lobe's ``k_s``, and a lobe as
 #: many times broader (the haze around a peak) or a broad lobe towards grazing.
 ADDED_SHARE = 0.1
@@ -272,7 +278,7 @@ def _added_lobes(params, lobes: int) -> list[dict]:
     ks = ADDED_SHARE * np.asarray(params["specular" + old[0]])
     new = f"_{lobes}"
     return [
-        {**same, "specular" + new: ks, "psi" + new: MIRROR, "exponent" + new: max(1.0, n / 8.0)},
+        {**same, "specular" + new: ks, "psi" + new: PSI_START, "exponent" + new: max(1.0, n / 8.0)},
         {**same, "specular" + new: ks, "psi" + new: 0.95 * np.pi, "exponent" + new: 3.0},
     ]
 
@@ -284,7 +290,7 @@ def start_lafortune(features, lobes: int) -> dict:
     out = dict(first)
     for k in range(2, lobes + 1):
         out.update({f"specular_{k}": ADDED_SHARE * np.asarray(first["specular_1"]),
-                    f"psi_{k}": MIRROR,
+                    f"psi_{k}": PSI_START,
                     f"exponent_{k}": max(1.0, first["exponent_1"] / 8.0 ** (k - 1))})
     return out
 
