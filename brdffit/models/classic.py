@@ -138,7 +138,7 @@ def lafortune_lobe(psi, exponent, wi, wo):
     (Lafortune et al. 1997 eq. 4, times Ngan's factor). The value depends on ``(C_xy, C_z)``
     only through its direction, so the lobe takes ``(C_xy, C_z) = (cos ψ, sin ψ)``:
     ``ψ = 3π/4`` is the modified Phong lobe about the mirror direction (:func:`phong`), larger
-    ``ψ`` tilts it towards grazing (``ψ = π``: ``C_z = 0``; beyond, ``C_z < 0``), ``ψ < π/2`` makes it
+    ``ψ`` tilts it towards grazing (``ψ = π``: ``C_z = 0``), ``ψ < π/2`` makes it
     retro-reflective. The base ``d/max(|C_xy|, |C_z|) ≤ 1`` is formed first, so the lobe stays
     finite where bbm's ``pow(max(C_z², C_xy²), n/2)`` underflows to 0 (``n`` above about 1300 at
     ``|C| ≈ 0.58``) and bbm's value is ``0/0``."""
@@ -344,9 +344,9 @@ _register("ngan-blinn-phong",
           lambda features: {k: v for k, v in start_phong(features).items() if k != "psi"})
 
 
-#: ``ψ`` up to ``5π/4``: past ``π`` the lobe has ``C_z < 0`` and leans further towards grazing
-#: (with ``ψ ≤ π`` the fabrics' fits end at ``C_z = 0``, where Ngan's fits of them lie too).
-PSI_MAX = 1.25 * float(np.pi)
+#: ``ψ`` up to ``π`` (``C_z ≥ 0``, as in every published fit). With ``C_z < 0`` allowed (up to
+#: ``5π/4``) the fabrics' fits ran on to that bound too, in 30–60 steps instead of 3–6.
+PSI_MAX = float(np.pi)
 
 
 def _lafortune_params(lobes):
