@@ -12,6 +12,7 @@ from . import aps  # noqa: F401  (registers aps-gaussian, aps-velvet, aps-satin,
 from . import cloth, energy  # noqa: F401  (registers cloth-velvet, cloth-sheen, ggx-ms, ggx-coupled)
 from . import fitted_distributions  # noqa: F401  (registers low-smooth, low-microfacet, sgd, student-t)
 from . import gltf_pbr, mitsuba_principled, mitsuba_roughconductor  # noqa: F401  (renderer-native models)
+from . import classic  # noqa: F401  (Ngan 2005, Löw 2012: Cook–Torrance, Ashikhmin–Shirley, Ward, Lafortune, ...)
 from .published import PublishedForm, published_forms, published_params, register_published
 from .registry import Model, Param, PerPass, available_models, get_model, register
 

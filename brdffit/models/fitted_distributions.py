@@ -17,7 +17,7 @@ writes; the bounds keep ``η ≥ 1``).
       F_\eta(\cos\theta_d), \qquad \cos\theta_d = \sqrt{1 - \tfrac14\lVert\tilde i - \tilde o\rVert^2}
 
 * ``low-microfacet``: Löw et al. 2012 eq. 15, the microfacet model with the ABC distribution
-  ``S`` (:class:`~brdffit.terms.ndf.ABC`) and the V-groove masking of Cook & Torrance 1982 (bbm
+  ``S`` (:class:`~brdffit.terms.ndf.ABC`) and the V-groove masking of Cook & Torrance 1982 (:func:`~brdffit.terms.masking.G2_vgroove`; bbm
   ``LowMicrofacetFit``: the normalisation ``π`` of the fits in Löw's supplemental material):
 
   .. math::  f = \frac{\rho_d}{\pi} + A\,\frac{S(\mathbf h)\,G\,F_\eta(\mathbf i\cdot\mathbf h)}
@@ -56,6 +56,7 @@ from data_formats.published import PublishedFit
 from ..terms._math import cos_theta, dot, half_vector, safe_div, safe_sqrt
 from ..terms.diffuse import lambert
 from ..terms.fresnel import dielectric, ior_from_f0, schlick
+from ..terms.masking import G2_vgroove
 from ..terms.microfacet import microfacet_specular
 from ..terms.ndf import ABC, SGD, StudentT, bagher_g1
 from ..terms.ndf.sgd import theta_of
@@ -95,20 +96,11 @@ def low_smooth(p, wi, wo):
     return lambert(p["diffuse"], wi, wo) + spec
 
 
-def vgroove_g(wi, wo, wm):
-    """Cook & Torrance 1982's V-groove masking-shadowing (module docstring), 0 where ``wm``
-    faces away from either direction."""
-    ih, oh, hz = dot(wi, wm), dot(wo, wm), wm[..., 2]
-    g = jnp.minimum(1.0, jnp.minimum(safe_div(2.0 * hz * cos_theta(wi), ih, fill=1.0),
-                                     safe_div(2.0 * hz * cos_theta(wo), oh, fill=1.0)))
-    return jnp.where((ih > 0) & (oh > 0), g, 0.0)
-
-
 def low_microfacet(p, wi, wo):
     """Löw 2012 eq. 15 with bbm's normalisation ``π`` plus Lambert (module docstring)."""
     wm = half_vector(wi, wo)
     ci, co = cos_theta(wi), cos_theta(wo)
-    geom = ABC(p["b"], p["c"]).S(wm) * vgroove_g(wi, wo, wm)
+    geom = ABC(p["b"], p["c"]).S(wm) * G2_vgroove(None, wi, wo, wm)
     geom = safe_div(geom, jnp.pi * ci * co) * _vis(wi, wo)
     cos_d = 0.5 * (dot(wi, wm) + dot(wo, wm))  # bbm's reciprocal average of two equal cosines
     return lambert(p["diffuse"], wi, wo) + p["a"] * geom[..., None] * dielectric(p["eta"], cos_d)

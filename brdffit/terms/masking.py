@@ -1,4 +1,5 @@
-"""Smith masking and masking-shadowing, every form written once from an NDF's ``Lambda``.
+"""Smith masking and masking-shadowing, every form written once from an NDF's ``Lambda``; and
+the Torrance–Sparrow V-groove form of the classic Cook–Torrance model (:func:`G2_vgroove`).
 
 All functions take an NDF object (see :mod:`brdffit.terms.ndf`), directions ``wi``, ``wo`` and the
 microfacet normal ``wm``, batched over ``(..., 3)``, and return the batch shape ``(...)``.
@@ -9,6 +10,7 @@ lambda_fn=lambda_van_ginneken)``. Passing any of them as ``g2=`` to
 
 Ordering (for the same ``Λ``): separable ≤ height-correlated ≤ height-direction correlated ≤
 ``min(G1(l), G1(v))``, and the direction-correlated form lies between separable and ``min``.
+The V-groove form is no Smith form: it ignores ``Λ`` (and the NDF).
 """
 
 from __future__ import annotations
@@ -99,3 +101,25 @@ def G2_height_direction_correlated(ndf, wi, wo, wm, *, lambda_fn=lambda_ashikhmi
     lam = lambda_fn(relative_azimuth(wi, wo))
     vis = chi_plus(dot(wo, wm)) * chi_plus(dot(wi, wm))
     return vis / (1.0 + jnp.maximum(lam_v, lam_l) + lam * jnp.minimum(lam_v, lam_l))
+
+
+def G2_vgroove(ndf, wi, wo, wm):  # noqa: N802
+    r"""Torrance–Sparrow V-groove masking-shadowing, as Cook & Torrance 1982 (eq. 9) use it.
+
+    .. math::
+
+        G(\mathbf l,\mathbf v,\mathbf m) = \chi^+(\mathbf m\cdot\mathbf v)\chi^+(\mathbf m\cdot\mathbf l)
+            \min\left(1,\ \frac{2(\mathbf n\cdot\mathbf m)(\mathbf n\cdot\mathbf v)}{\mathbf v\cdot\mathbf m},\
+            \frac{2(\mathbf n\cdot\mathbf m)(\mathbf n\cdot\mathbf l)}{\mathbf l\cdot\mathbf m}\right)
+
+    Symmetric V-grooves (Torrance & Sparrow 1967), the form of bbm's
+    ``maskingshadowing/vgroove.h``. Unlike the Smith forms above it does not depend on the NDF;
+    ``ndf`` is taken (and ignored) so that it has the signature of every ``g2``.
+    """
+    del ndf
+    cm = wm[..., 2]
+    dv, dl = dot(wo, wm), dot(wi, wm)
+    vis = chi_plus(dv) * chi_plus(dl)
+    gv = 2.0 * cm * wo[..., 2] / jnp.where(dv > 0, dv, 1.0)
+    gl = 2.0 * cm * wi[..., 2] / jnp.where(dl > 0, dl, 1.0)
+    return vis * jnp.minimum(1.0, jnp.minimum(gv, gl))
