@@ -8,7 +8,11 @@ native model is then *fitted* to those values with :func:`brdffit.fit`, with the
 metrics and result type as a fit to measurements: the approximation's error is that fit's
 ``metrics`` (``rmse_log``, ``rel_error``, ...), against the fitted model instead of the data.
 
-Noise-free data make the fit deterministic; two starts (a dielectric and a metal reading of the
+The target model is fitted to the source model, not mapped parameter by parameter: a mapping
+(say Disney's ``specular`` onto glTF's core material) has nowhere to put what the target cannot
+hold, and lands on whatever the formulas share (a shiny plastic mapped to the core glTF model
+lost its colour to ``metallic``); a fit finds the target material closest to what the source
+renders, and says how close. Noise-free data make the fit deterministic; two starts (a dielectric and a metal reading of the
 data-driven features) guard against the metallic/dielectric ambiguity, and the lower cost wins.
 """
 
@@ -44,11 +48,13 @@ def sample_pairs(n: int = 60000, *, cutoff: float = 80.0, seed: int = 0):
 def _starts(native, features) -> list[dict]:
     """Two starting points for ``native`` from data-driven features: the dielectric and the
     metal reading (:func:`brdffit.models.starts.metallic_roughness`)."""
-    from ..models.starts import metallic_roughness
+    from ..models.starts import gltf_pbr, metallic_roughness
 
     starts = []
     for metal in (False, True):
-        p = {**metallic_roughness(features, metal), "specular": 0.5, "alpha": features.alpha,
+        reading = (gltf_pbr(features, metal) if native.name.startswith("gltf-pbr")
+                   else {**metallic_roughness(features, metal), "specular": 0.5})
+        p = {**reading, "alpha": features.alpha,
              "alpha_u": features.alpha, "alpha_v": features.alpha,
              "specular_reflectance": np.clip(features.f0, 0.02, 0.98)}
         starts.append({k: v for k, v in p.items() if k in native.names})

@@ -57,9 +57,11 @@ def metallic_roughness(features, metal: bool | None = None) -> dict:
 GLTF_IOR_RANGE = (1.22, 3.0)
 
 
-def gltf_pbr(features) -> dict:
-    """The start of ``gltf-pbr`` (module docstring)."""
-    metal = float(np.mean(features.f0)) > METAL_F0
+def gltf_pbr(features, metal: bool | None = None) -> dict:
+    """The start of ``gltf-pbr`` (module docstring); ``metal`` forces one reading (``None``:
+    decided by :data:`METAL_F0`)."""
+    if metal is None:
+        metal = float(np.mean(features.f0)) > METAL_F0
     f0 = float(np.clip(np.mean(features.f0), 0.0, 0.99))
     ior = float(np.clip((1 + np.sqrt(f0)) / (1 - np.sqrt(f0)), *GLTF_IOR_RANGE))
     return {**metallic_roughness(features, metal), "metallic": 1.0 if metal else 0.0,
