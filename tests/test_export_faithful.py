@@ -160,9 +160,11 @@ def test_the_mitsuba_measure_has_teeth(fits, pink):
     res = fits["mitsuba-principled"]
     params = dict(res.params, roughness=res.params["roughness"] * 1.3)
     out = export(("mitsuba-principled", params), "mitsuba-dict", error=False)
+    from brdffit.export import TARGETS
     from brdffit.export.faithful import export_error
 
-    err = export_error(out, ("mitsuba-principled", res.params), pink, n=4000)
+    err = export_error(out, ("mitsuba-principled", res.params), pink, n=4000,
+                       evaluate=TARGETS["mitsuba-dict"].evaluate)
     assert err.export["rmse_log"] > err.fit["rmse_log"] * 1.1
 
 

@@ -107,6 +107,9 @@ class Target:
             ``fragment`` asks for the bare element where the format has one.
         others: more native models a message suggests (``"for metals also ..."``).
         coated: the native model an approximation also tries for a source with a clear coat.
+        evaluate: ``evaluate(exported, wi, wo) -> (f_r, renderer name)``: the written material
+            as the target renderer computes it (:mod:`brdffit.export.faithful`); ``None``: the
+            export's error is not measured.
     """
 
     name: str
@@ -117,6 +120,7 @@ class Target:
     payload: Callable
     others: str = ""
     coated: str = ""
+    evaluate: Callable | None = None
 
 
 def _is_mitsuba(name: str) -> bool:
@@ -145,6 +149,18 @@ def _gltf(model, params, note, fragment=False):
     return doc
 
 
+def _in_mitsuba(exported, wi, wo):
+    from .faithful import mitsuba_bsdf, mitsuba_brdf, mitsuba_version
+
+    return mitsuba_brdf(mitsuba_bsdf(exported), wi, wo), f"Mitsuba {mitsuba_version()} BSDF.eval"
+
+
+def _in_gltf(exported, wi, wo):
+    from .gltf_reference import document_brdf
+
+    return document_brdf(exported.payload, wi, wo), "glTF reference BRDF"
+
+
 _GLTF_MODELS = ("gltf-pbr", "gltf-pbr-clearcoat")
 
 
@@ -153,12 +169,14 @@ _MITSUBA_METALS = "for metals also mitsuba-roughconductor"
 #: The export targets, by name: the single list of what can be exported.
 TARGETS: dict[str, Target] = {t.name: t for t in (
     Target("mitsuba-xml", "a <bsdf> element for a Mitsuba 3 scene", "Mitsuba",
-           "mitsuba-principled", _is_mitsuba, _mitsuba_xml, _MITSUBA_METALS),
+           "mitsuba-principled", _is_mitsuba, _mitsuba_xml, _MITSUBA_METALS,
+           evaluate=_in_mitsuba),
     Target("mitsuba-dict", "JSON of the dict mitsuba.load_dict takes", "Mitsuba",
-           "mitsuba-principled", _is_mitsuba, _mitsuba_dict, _MITSUBA_METALS),
+           "mitsuba-principled", _is_mitsuba, _mitsuba_dict, _MITSUBA_METALS,
+           evaluate=_in_mitsuba),
     Target("gltf", "a glTF 2.0 sphere with the material (.glb: binary glTF)", "glTF",
            "gltf-pbr", lambda name: name in _GLTF_MODELS, _gltf, "with a coat gltf-pbr-clearcoat",
-           coated="gltf-pbr-clearcoat"),
+           coated="gltf-pbr-clearcoat", evaluate=_in_gltf),
 )}
 
 
@@ -270,8 +288,11 @@ def _with_error(out: Exported, source, data, error_cells) -> Exported:
     """``out`` with its :class:`~.faithful.ExportError`, kept in the file where it has room."""
     from .faithful import export_error
 
+    evaluate = TARGETS[out.target].evaluate
+    if evaluate is None:
+        return dataclasses.replace(out, error_note="not measured: the target has no evaluator")
     try:
-        err = export_error(out, source, data, n=error_cells)
+        err = export_error(out, source, data, evaluate=evaluate, n=error_cells)
     except ImportError as exc:  # Mitsuba is an optional extra
         return dataclasses.replace(out, error_note=f"not measured: {exc}")
     payload = out.payload
@@ -316,7 +337,8 @@ def export(result, to: str, *, approximate: bool = False, data=None, error: bool
         _check_finite(model.name, params)
     full = model.complete(params)
     note = functools.partial(_note, model.name, name, source, approx)
-    out = Exported(to, target.payload(model, full, note, fragment), model.name, full, approx)
+    extra = {"fragment": True} if fragment else {}
+    out = Exported(to, target.payload(model, full, note, **extra), model.name, full, approx)
     if not error:
         return out
     from .faithful import ERROR_CELLS

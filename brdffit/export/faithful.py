@@ -133,20 +133,15 @@ def mitsuba_brdf(bsdf, wi, wo) -> np.ndarray:
     return out / np.maximum(np.asarray(wi, float)[:, 2:3], 1e-300)
 
 
-def renderer_brdf(exported, wi, wo):
-    """``(f_r (n, 3), renderer name)``: the exported material as its target renderer computes it."""
-    if exported.target == "gltf":
-        from .gltf_reference import document_brdf
-
-        return document_brdf(exported.payload, wi, wo), "glTF reference BRDF"
-    mi = _mitsuba()
-    return mitsuba_brdf(mitsuba_bsdf(exported), wi, wo), f"Mitsuba {mi.__version__} BSDF.eval"
+def mitsuba_version() -> str:
+    return _mitsuba().__version__
 
 
-def export_error(exported, source, data=None, *, n: int = ERROR_CELLS, seed: int = 0):
+def export_error(exported, source, data=None, *, evaluate, n: int = ERROR_CELLS, seed: int = 0):
     """The :class:`ExportError` of ``exported`` (an :class:`~brdffit.export.Exported`) for the
     fit ``source`` (``(model_name, params)``) on ``n`` cells of ``data`` (module docstring;
-    ``None``: the fitted model on MERL-warped pairs)."""
+    ``None``: the fitted model on MERL-warped pairs). ``evaluate(exported, wi, wo) -> (f_r,
+    renderer name)`` is the target's renderer (:class:`brdffit.export.Target`)."""
     from ..models.evaluate import evaluate_model
 
     name, params = source
@@ -161,7 +156,7 @@ def export_error(exported, source, data=None, *, n: int = ERROR_CELLS, seed: int
         measured = np.asarray(evaluate_model(name, params, wi, wo), float)
         against = f"the fitted {name}"
     fitted = np.asarray(evaluate_model(name, params, wi, wo), float)
-    rendered, renderer = renderer_brdf(exported, wi, wo)
+    rendered, renderer = evaluate(exported, wi, wo)
     ci, co = wi[:, 2], wo[:, 2]
     return ExportError(errors(rendered, measured, ci, co), errors(fitted, measured, ci, co),
                        renderer, against, len(wi))
