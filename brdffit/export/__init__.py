@@ -259,14 +259,20 @@ def _no_counterpart(name, target: Target):
         f"{target.native} to the fitted {name} and report that approximation's error")
 
 
-def _approximate(model, params, target: Target, approx_options):
+def _approximate(model, params, target: Target, data, approx_options):
     """The native model fitted to ``model`` (and, for a coated source, the coated native
-    model too; the lower cost wins)."""
+    model too; the lower cost wins), sampled at the cells of ``data`` where there are data."""
     from .approximate import approximate as fit_native
 
     natives = [target.native]
     if target.coated and float(np.max(params.get("clearcoat", 0.0))) > 0.0:
         natives.append(target.coated)
+    if data is not None and "pairs" not in approx_options:
+        from .faithful import cells
+
+        wi, wo, _, w = cells(data, approx_options.get("n", 40000), approx_options.get("seed", 1),
+                             weights=True)
+        approx_options = {**approx_options, "pairs": (wi, wo, w)}
     fits = [fit_native(model, params, native, **approx_options) for native in natives]
     return min(fits, key=lambda r: r.cost)
 
@@ -312,7 +318,8 @@ def export(result, to: str, *, approximate: bool = False, data=None, error: bool
     not the target's BSDF and ``approximate`` is false; with ``approximate=True`` it fits the
     target's ``native`` model to the fitted model (options passed to
     :func:`~brdffit.export.approximate.approximate`; a source with a clear coat also tries the
-    target's ``coated`` model). Raises :class:`NotExportable` for a parameter that is not finite.
+    target's ``coated`` model), sampled at the measured cells where the data are at hand (seed
+    1: other cells than the error's) and at MERL-warped pairs otherwise. Raises :class:`NotExportable` for a parameter that is not finite.
 
     With ``error`` (the default) the export's error is measured in the target renderer
     (:func:`brdffit.export.faithful.export_error`) on ``error_cells`` cells of ``data``, by
@@ -329,10 +336,11 @@ def export(result, to: str, *, approximate: bool = False, data=None, error: bool
     source = getattr(result, "table", "") or "data"
     _check_finite(name, params)
     target, approx = TARGETS[to], None
+    if not target.is_native(model.name) and not approximate:
+        raise _no_counterpart(model.name, target)
+    measured = _measured(result, data) if error or approximate else None
     if not target.is_native(model.name):
-        if not approximate:
-            raise _no_counterpart(model.name, target)
-        approx = _approximate(model, model.complete(params), target, approx_options)
+        approx = _approximate(model, model.complete(params), target, measured, approx_options)
         model, params = get_model(approx.model_name), approx.params
         _check_finite(model.name, params)
     full = model.complete(params)
@@ -345,7 +353,7 @@ def export(result, to: str, *, approximate: bool = False, data=None, error: bool
 
     return _with_error(out, (name, get_model(name).complete(
         result[1] if isinstance(result, tuple) else result.params)),
-        _measured(result, data), error_cells or ERROR_CELLS)
+        measured, error_cells or ERROR_CELLS)
 
 
 def export_payload(result, to: str, *, approximate: bool = False, **approx_options):

@@ -81,9 +81,10 @@ def errors(fitted, measured, cos_i, cos_o) -> dict:
     return {"rmse_log": out["rmse_log"], "peak_log": peak, "rel_error": out["rel_error"]}
 
 
-def cells(data, n: int = ERROR_CELLS, seed: int = 0):
+def cells(data, n: int = ERROR_CELLS, seed: int = 0, *, weights: bool = False):
     """``(wi, wo, f_r)`` of ``n`` seeded cells of ``data`` (a table or sample list): valid
-    cells with non-zero weight, both directions above the horizon."""
+    cells with non-zero weight, both directions above the horizon; with ``weights``, their
+    weights too (ones where the data have none)."""
     samples = data.to_samples() if hasattr(data, "to_samples") else data
     keep = np.asarray(samples.valid, bool) & (samples.wi[:, 2] > 0) & (samples.wo[:, 2] > 0)
     weight = getattr(samples, "weight", None)
@@ -94,6 +95,9 @@ def cells(data, n: int = ERROR_CELLS, seed: int = 0):
         rows = np.sort(np.random.default_rng(seed).choice(rows, n, replace=False))
     rgb = np.broadcast_to(np.asarray(samples.rgb, float)[rows].reshape(len(rows), -1),
                           (len(rows), 3))
+    if weights:
+        w = np.ones(len(rows)) if weight is None else np.asarray(weight, float)[rows]
+        return samples.wi[rows], samples.wo[rows], rgb, w
     return samples.wi[rows], samples.wo[rows], rgb
 
 
