@@ -20,7 +20,7 @@ element instead of a scene file; an output named ``*.glb`` gets binary glTF. ``-
 from __future__ import annotations
 
 from ..export import TARGETS
-from ._common import check_outputs
+from ._common import check_outputs, write_text
 from .plotting import add_model_option, read_result
 
 
@@ -70,8 +70,12 @@ def run(args) -> int:
         start = time.perf_counter()
         out = export(result, args.to, approximate=args.approximate, data=table,
                      fragment=args.fragment)
-        data = out.data(Path(args.output).suffix)
-        outputs.write(args.output, lambda tmp: Path(tmp).write_bytes(data))
+        if Path(args.output).suffix.lower() == ".glb" and args.to == "gltf":
+            data = out.data(".glb")
+            outputs.write(args.output, lambda tmp: Path(tmp).write_bytes(data))
+        else:
+            text = out.text()
+            outputs.write(args.output, lambda tmp: write_text(tmp, text))
         seconds = time.perf_counter() - start
         outputs.publish()
     if out.approximation is not None:

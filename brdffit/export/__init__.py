@@ -44,10 +44,13 @@ brdffit model / parameter                target
 
 Targets: the registry :data:`TARGETS` (name -> :class:`Target`), the one list the command line
 (``brdffit export --to``, its help), the error messages and the tests read: ``"mitsuba-dict"``
-(a dict for ``mitsuba.load_dict``; written to a file as JSON), ``"mitsuba-xml"`` (a ``<bsdf>``
-element to paste into a ``<scene>``), ``"gltf"`` (a glTF 2.0 JSON document with one material).
-To add one: a function writing the payload (a module of this package for a format of its own)
-and a :class:`Target` entry in :data:`TARGETS`; ``tests/test_one_owner.py`` runs every entry.
+(a dict for ``mitsuba.load_dict``; written to a file as JSON), ``"mitsuba-xml"`` (a Mitsuba 3
+scene file holding the ``<bsdf>``, or the bare element with ``fragment=True``), ``"gltf"`` (a
+glTF 2.0 asset: a sphere with the material in a scene; binary ``.glb`` through
+:meth:`Exported.data`). To add one: a function writing the payload (a module of this package
+for a format of its own) and a :class:`Target` entry in :data:`TARGETS` (with ``evaluate``, the
+renderer's evaluation, for its error to be measured); ``tests/test_one_owner.py`` runs every
+entry.
 
 Every file is well-formed whatever the data: the table's name goes into the provenance note
 (the XML's leading comment, the glTF material's ``extras.brdffit``) as a Python string literal
