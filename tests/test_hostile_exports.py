@@ -105,13 +105,13 @@ def test_a_hostile_table_name_stays_data_in_mitsuba_xml(tmp_path, capsys, model,
     ``<bsdf id="evil">``; control characters and lone surrogates broke the file too."""
     out = _export_cli(tmp_path, _result(model, name), "mitsuba-xml", capsys)
     raw = out.read_bytes()
-    root = ET.fromstring(raw)  # one comment, then one element: a well-formed document
-    assert root.tag == "bsdf" and root.get("id") == "brdffit-material"
-    assert root.findall(".//bsdf") == []
+    root = ET.fromstring(raw)  # comments, then one scene holding one bsdf: well-formed
+    assert root.tag == "scene" and [b.get("id") for b in root.iter("bsdf")] == ["brdffit-material"]
     doc = xml.dom.minidom.parseString(raw)
     comments = [n for n in doc.childNodes if n.nodeType == n.COMMENT_NODE]
-    assert len(comments) == 1 and len(doc.getElementsByTagName("bsdf")) == 1
-    literal = comments[0].data.split(" fit of ", 1)[1].rsplit(", exact", 1)[0]
+    notes = [c for c in comments if " fit of " in c.data]  # the provenance; also the export error
+    assert len(notes) == 1 and len(doc.getElementsByTagName("bsdf")) == 1
+    literal = notes[0].data.split(" fit of ", 1)[1].rsplit(", exact", 1)[0]
     assert ast.literal_eval(literal) == name  # the name, exactly, as a Python literal
 
 
@@ -120,8 +120,8 @@ def test_mitsuba_loads_the_xml_of_a_hostile_name_with_one_bsdf(tmp_path, capsys,
     mi = _mitsuba()
     xml_text = _export_cli(tmp_path, _result("mitsuba-principled", name), "mitsuba-xml",
                            capsys).read_text(encoding="utf-8")
-    scene = mi.load_string(f'<scene version="3.0.0">{xml_text}<shape type="sphere">'
-                           '<ref id="brdffit-material"/></shape></scene>')
+    scene = mi.load_string(xml_text.replace("</scene>", '<shape type="sphere">'
+                           '<ref id="brdffit-material"/></shape></scene>'))
     (shape,) = scene.shapes()
     assert shape.bsdf().id() == "brdffit-material"
     ids = {child.id() for child in scene.shapes()} | {shape.bsdf().id()}
@@ -133,7 +133,9 @@ def test_a_hostile_table_name_stays_data_in_gltf(tmp_path, capsys, name):
     out = _export_cli(tmp_path, _result("gltf-pbr", name), "gltf", capsys)
     doc = _strict_json(out.read_bytes().decode("utf-8"))  # strict UTF-8, strict JSON
     (material,) = doc["materials"]
-    assert material["name"] == "brdffit-material" and set(doc) == {"asset", "materials"}
+    assert material["name"] == "brdffit-material" and set(doc) == {
+        "asset", "materials", "scene", "scenes", "nodes", "meshes", "buffers", "bufferViews",
+        "accessors"}
     note = material["extras"]["brdffit"]
     assert ast.literal_eval(note.split(" fit of ", 1)[1].rsplit(", exact", 1)[0]) == name
 
@@ -153,7 +155,7 @@ def test_the_gltf_of_a_hostile_name_passes_the_khronos_validator(tmp_path, capsy
 def test_xml_attributes_are_escaped_and_unrepresentable_ones_refused():
     model = brdffit.get_model("mitsuba-principled")
     params = model.complete(NATIVE["mitsuba-principled"])
-    root = ET.fromstring(mitsuba_xml(model, params, bsdf_id='a"b<c>&\'d\n'))
+    root = ET.fromstring(mitsuba_xml(model, params, bsdf_id='a"b<c>&\'d\n', fragment=True))
     assert root.get("id") == 'a"b<c>&\'d\n'
     with pytest.raises(ValueError, match="XML cannot carry"):
         mitsuba_xml(model, params, bsdf_id="a\x01b")

@@ -7,7 +7,13 @@ The result's model must be the target's own BSDF (a renderer-native model: ``mit
 ``mitsuba-roughconductor*``, ``gltf-pbr``); otherwise the command fails naming the native model
 to fit, unless ``--approximate``, which fits that native model to the fitted one and prints the
 approximation's error in the metrics of a fit. The mapping is documented in
-:mod:`brdffit.export`. ``--model NAME`` picks one result of a file of several
+:mod:`brdffit.export`.
+
+Every export prints its own error (:mod:`brdffit.export.faithful`): the written material
+evaluated by the target renderer (Mitsuba's ``BSDF.eval``, the glTF reference BRDF) against the
+measured table (``--table``, by default the file the result was fitted to), beside the fit's,
+as ``rmse_log`` and ``peak_log``. ``--fragment`` writes ``mitsuba-xml`` as the bare ``<bsdf>``
+element instead of a scene file; an output named ``*.glb`` gets binary glTF. ``--model NAME`` picks one result of a file of several
 (``brdffit fit -m a,b --out``); such a file without it is refused, its models listed.
 """
 
@@ -39,21 +45,37 @@ def add_parser(sub, parents) -> None:
     p.add_argument("--approximate", action="store_true",
                    help="for a model with no exact counterpart: fit the target's native model to "
                    "it and report that approximation's error")
+    p.add_argument("--table", metavar="TABLE",
+                   help="the measured data to report the export's error against (default: the "
+                   "file the result was fitted to; without it, the fitted model)")
+    p.add_argument("--fragment", action="store_true",
+                   help="mitsuba-xml: write the bare <bsdf> element to paste into a scene, not "
+                   "a scene file")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
     import time
+    from pathlib import Path
 
     from ..export import export
+    from ._common import UsageError, read_input
 
+    if args.fragment and args.to != "mitsuba-xml":
+        raise UsageError(f"--fragment is for --to mitsuba-xml (a <bsdf> element), not {args.to}")
     with check_outputs([args.output], args.force) as outputs:
         result = read_result(args.result, model=args.model, flag="")
+        table = read_input(args.table) if args.table else None
         start = time.perf_counter()
-        out = export(result, args.to, approximate=args.approximate)
-        text = out.text()
-        outputs.write(args.output, lambda tmp: write_text(tmp, text))
+        out = export(result, args.to, approximate=args.approximate, data=table,
+                     fragment=args.fragment)
+        if Path(args.output).suffix.lower() == ".glb" and args.to == "gltf":
+            data = out.data(".glb")
+            outputs.write(args.output, lambda tmp: Path(tmp).write_bytes(data))
+        else:
+            text = out.text()
+            outputs.write(args.output, lambda tmp: write_text(tmp, text))
         seconds = time.perf_counter() - start
         outputs.publish()
     if out.approximation is not None:
@@ -61,6 +83,10 @@ def run(args) -> int:
         print(f"{out.model_name} approximates the {result.model_name} fit "
               f"({'converged' if out.approximation.success else 'NOT converged'}): "
               + ", ".join(f"{k} {v:.4g}" for k, v in m.items()))
+    if out.error is not None:
+        print(out.error.text())
+    elif out.error_note:
+        print(f"export error {out.error_note}")
     if not args.quiet:
         print(f"wrote {args.output} ({args.to}, {out.model_name}, {seconds:.2f} s)")
     return 0

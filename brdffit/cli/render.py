@@ -50,7 +50,7 @@ def run(args) -> int:
                          environment=args.environment)
     with check_outputs([args.output], args.force) as outputs:
         result = read_result(args.result, model=args.model, flag="")
-        out = export(result, "mitsuba-dict", approximate=args.approximate)
+        out = export(result, "mitsuba-dict", approximate=args.approximate, error=False)
         start = time.perf_counter()
         image = render_mitsuba(out.payload, size=args.size, spp=args.spp,
                                environment=float(args.environment))

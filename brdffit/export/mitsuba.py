@@ -5,6 +5,11 @@ parameter mapping is the table in :mod:`brdffit.export`. Values are written with
 precision (Mitsuba reads them as float32). Every attribute value of the XML is escaped
 (:func:`brdffit.export._text.xml_attribute`), so the element is well-formed XML; a ``bsdf_id``
 holding a character XML cannot carry is refused.
+
+The XML is a file ``mitsuba.load_file`` accepts as it is: a ``<scene version="3.0.0">`` holding
+the ``<bsdf>`` (with ``id`` :data:`BSDF_ID`), which a scene can also ``<include>``; on request
+(``fragment=True``, ``brdffit export --fragment``) the bare ``<bsdf>`` element to paste inside a
+``<scene>``.
 """
 
 from __future__ import annotations
@@ -13,6 +18,11 @@ import numpy as np
 
 from ..models.mitsuba_roughconductor import variant_of
 from ._text import xml_attribute
+
+#: The ``id`` of the exported ``<bsdf>``: shapes ``<ref id="brdffit-material"/>`` it.
+BSDF_ID = "brdffit-material"
+#: The scene format version written (Mitsuba 3 requires the attribute on the root element).
+SCENE_VERSION = "3.0.0"
 
 #: Principled parameters, written under the same names (``spec_trans`` is added as 0).
 PRINCIPLED_SCALARS = ("roughness", "anisotropic", "metallic", "specular", "spec_tint", "sheen",
@@ -73,8 +83,9 @@ def _xml_value(name, value) -> str:
     return f'<float name={key} value="{float(value)!r}"/>'
 
 
-def mitsuba_xml(model, params, *, bsdf_id: str = "brdffit-material") -> str:
-    """The ``<bsdf>`` element for a Mitsuba 3 scene (a fragment: paste it inside ``<scene>``).
+def mitsuba_xml(model, params, *, bsdf_id: str = BSDF_ID, fragment: bool = False) -> str:
+    """A Mitsuba 3 scene file holding the material's ``<bsdf>`` (``fragment=True``: the
+    ``<bsdf>`` element alone, to paste inside a ``<scene>``).
 
     The same values as :func:`mitsuba_dict`, each as ``<float>``, ``<rgb>`` or ``<string>``; the
     element carries ``id=bsdf_id`` (escaped; ``ValueError`` for a character XML cannot hold) so
@@ -84,4 +95,6 @@ def mitsuba_xml(model, params, *, bsdf_id: str = "brdffit-material") -> str:
     lines = [f"<bsdf type={xml_attribute(d['type'], 'type')} id={xml_attribute(bsdf_id, 'id')}>"]
     lines += [f"    {_xml_value(k, v)}" for k, v in d.items() if k != "type"]
     lines.append("</bsdf>")
+    if not fragment:
+        lines = [f'<scene version="{SCENE_VERSION}">'] + [f"    {x}" for x in lines] + ["</scene>"]
     return "\n".join(lines) + "\n"

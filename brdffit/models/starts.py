@@ -11,6 +11,12 @@ inside the parameters' bounds.
   :data:`METAL_F0` read as a metal (colour from ``F0``, ``metallic`` 0.9), others as a
   dielectric (colour from ``ρ_d``, ``metallic`` 0.1); Disney's and Mitsuba's ``specular`` is
   the dielectric ``F0 = 0.08 specular``.
+* **glTF** (``gltf-pbr``, ``gltf-pbr-clearcoat``): a dielectric starts at ``metallic`` 0 with
+  its diffuse colour and the ``ior`` of its ``F0`` (``KHR_materials_ior``:
+  ``ior = (1 + √F0)/(1 − √F0)``, so a plastic's 5 % gives 1.58), ``specular`` 1; a metal at
+  ``metallic`` 1 with the colour of its ``F0``. The dielectric start matters: the fit does not
+  leave the basin it starts in, and the core model's metallic reading of a shiny plastic (a
+  black metal) is a worse optimum once the dielectric can reach its ``F0``.
 * **Mitsuba's rough conductor**: ``α`` as measured (both ``alpha_u`` and ``alpha_v`` when
   anisotropic); the tint form's ``specular_reflectance`` is ``F0`` (its Fresnel is 1), the
   complex-IOR form takes ``η = 1`` and the ``k`` whose normal-incidence reflectance
@@ -45,6 +51,21 @@ def metallic_roughness(features, metal: bool | None = None) -> dict:
         "metallic": 0.9 if metal else 0.1,
         "roughness": float(np.clip(np.sqrt(features.alpha), 0.05, 0.95)),
     }
+
+
+#: The ``ior`` range of the glTF start: ``F0`` from 1 % to 25 %.
+GLTF_IOR_RANGE = (1.22, 3.0)
+
+
+def gltf_pbr(features, metal: bool | None = None) -> dict:
+    """The start of ``gltf-pbr`` (module docstring); ``metal`` forces one reading (``None``:
+    decided by :data:`METAL_F0`)."""
+    if metal is None:
+        metal = float(np.mean(features.f0)) > METAL_F0
+    f0 = float(np.clip(np.mean(features.f0), 0.0, 0.99))
+    ior = float(np.clip((1 + np.sqrt(f0)) / (1 - np.sqrt(f0)), *GLTF_IOR_RANGE))
+    return {**metallic_roughness(features, metal), "metallic": 1.0 if metal else 0.0,
+            "ior": 1.5 if metal else ior, "specular": 1.0}
 
 
 def specular_level(features) -> float:
