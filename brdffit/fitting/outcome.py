@@ -275,7 +275,8 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
         table=prep.name, covariance=s.covariance, optimality=float(best.omega),
         not_identified=[names[free[i]] for i in np.flatnonzero(lost) if best.finite],
     )
-    result.plausibility = verdict_record(assess(model, result.params, result.metrics))
+    result.plausibility = verdict_record(assess(model, result.params, result.metrics,
+                                                result.loss))
     if throw and not v.success:
         failed = "did not converge" if v.status not in DATA_VERDICTS else f"is {v.status}"
         raise FitError(f"{model.name} fit of {prep.name or 'table'} {failed}: {v.message} "
