@@ -90,7 +90,8 @@ def test_html_view_and_dataframe_have_one_row_per_scalar(result):
     assert list(df.columns) == ["value", "stderr", "lower", "upper", "status", "at_bound"]
     assert df.loc["alpha", "value"] == pytest.approx(0.2, rel=1e-4)
     assert df.loc["alpha", "lower"] == 0.001 and df.loc["alpha", "upper"] == 1.0
-    assert (df["status"] == "free").all() and not df["at_bound"].any()
+    assert (df["status"][:8] == "free").all() and not df["at_bound"].any()
+    assert (df["status"][8:] == "derived").all()  # f90 = f0 + (1 - f0) grazing
     html = result._repr_html_()
     params = html.split("<table class='brdffit-params'>")[1].split("</table>")[0]
     assert params.count("<tr>") == 1 + 8  # the header and one row per scalar
