@@ -77,8 +77,10 @@ def timed(call, repeat):
 
 def ggx_numpy(x, wi, wo):
     """Plain NumPy transcription of the ``ggx`` model (RTR eqs. 9.34, 9.41, 9.42, 9.31, 9.18):
-    ``x`` is diffuse (3), f0 (3), alpha, f90 (``ggx``'s flat order)."""
-    diffuse, f0, a, f90 = x[0:3], x[3:6], x[6], x[7]
+    ``x`` is diffuse (3), f0 (3), alpha, grazing (``ggx``'s flat order; ``F90 = F0 + (1 − F0)
+    grazing``)."""
+    diffuse, f0, a = x[0:3], x[3:6], x[6]
+    f90 = f0 + (1 - f0) * x[7]
     h = wi + wo
     h /= np.linalg.norm(h, axis=1, keepdims=True)
     ci, co, ch = wi[:, 2], wo[:, 2], h[:, 2]

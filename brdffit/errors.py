@@ -16,14 +16,15 @@ class BrdffitError(ValueError):
 class UnknownNameError(BrdffitError, KeyError):
     """A name (model, parameter, loss, solver, config key) that is not in its registry."""
 
-    def __init__(self, kind: str, name: str, valid, owner: str = ""):
+    def __init__(self, kind: str, name: str, valid, owner: str = "", note: str = ""):
         """``owner`` (e.g. ``"model 'ggx'"``) makes the sentence "model 'ggx' has no parameter
-        'F0'"; without it: "unknown loss 'lgo'". A suggestion follows: a name differing only in
-        case first, else the closest one (``difflib``)."""
+        'F0'"; without it: "unknown loss 'lgo'". A suggestion follows: ``note`` when given (what
+        the name is instead and what to use), else a name differing only in case, else the
+        closest one (``difflib``)."""
         valid = sorted(str(v) for v in valid)
         same_case = [v for v in valid if v.lower() == str(name).lower()]
         close = same_case or difflib.get_close_matches(str(name), valid, n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
+        hint = f" {note}" if note else f" Did you mean {close[0]!r}?" if close else ""
         self.kind, self.name, self.valid = kind, name, valid
         head = f"{owner} has no {kind} {name!r}" if owner else f"unknown {kind} {name!r}"
         super().__init__(f"{head}; valid choices: {', '.join(valid)}.{hint}")

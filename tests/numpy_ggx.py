@@ -4,14 +4,16 @@ fit (``benchmarks/bench_fit.py`` keeps its own copy: benchmarks do not import th
 
 import numpy as np
 
-#: Bounds of ``ggx``'s flat vector (diffuse ×3, f0 ×3, alpha, f90) for ``least_squares``.
+#: Bounds of ``ggx``'s flat vector (diffuse ×3, f0 ×3, alpha, grazing) for ``least_squares``.
 LOWER = np.array([0.0] * 6 + [1e-3, 0.0])
 UPPER = np.ones(8)
 
 
 def ggx_numpy(x, wi, wo):
-    """RTR eqs. 9.34, 9.41, 9.42, 9.31, 9.18, 9.61; ``x`` is diffuse (3), f0 (3), alpha, f90."""
-    diffuse, f0, a2, f90 = x[0:3], x[3:6], x[6] ** 2, x[7]
+    """RTR eqs. 9.34, 9.41, 9.42, 9.31, 9.18, 9.61; ``x`` is diffuse (3), f0 (3), alpha, the
+    grazing rise ``t`` (``F90 = F0 + (1 − F0) t``)."""
+    diffuse, f0, a2 = x[0:3], x[3:6], x[6] ** 2
+    f90 = f0 + (1 - f0) * x[7]
     h = wi + wo
     h = h / np.linalg.norm(h, axis=1, keepdims=True)
     ci, co, ch = wi[:, 2], wo[:, 2], h[:, 2]

@@ -20,7 +20,7 @@ import pytest
 
 import brdffit
 
-TRUTH = {"diffuse": [0.1, 0.06, 0.02], "f0": [0.9, 0.6, 0.3], "alpha": 0.2, "f90": 0.7}
+TRUTH = {"diffuse": [0.1, 0.06, 0.02], "f0": [0.9, 0.6, 0.3], "alpha": 0.2, "grazing": 0.7}
 N_SAMPLES = 1200
 
 
@@ -86,11 +86,12 @@ def test_repr_is_one_short_line(result):
 def test_html_view_and_dataframe_have_one_row_per_scalar(result):
     df = result.to_dataframe()
     assert list(df.index) == ["diffuse[0]", "diffuse[1]", "diffuse[2]", "f0[0]", "f0[1]",
-                              "f0[2]", "alpha", "f90"]
+                              "f0[2]", "alpha", "grazing", "f90[0]", "f90[1]", "f90[2]"]
     assert list(df.columns) == ["value", "stderr", "lower", "upper", "status", "at_bound"]
     assert df.loc["alpha", "value"] == pytest.approx(0.2, rel=1e-4)
     assert df.loc["alpha", "lower"] == 0.001 and df.loc["alpha", "upper"] == 1.0
-    assert (df["status"] == "free").all() and not df["at_bound"].any()
+    assert (df["status"][:8] == "free").all() and not df["at_bound"].any()
+    assert (df["status"][8:] == "derived").all()  # f90 = f0 + (1 - f0) grazing
     html = result._repr_html_()
     params = html.split("<table class='brdffit-params'>")[1].split("</table>")[0]
     assert params.count("<tr>") == 1 + 8  # the header and one row per scalar
@@ -275,7 +276,7 @@ def test_monochrome_sample_list_fits_a_grey_model(tmp_path):
     data = read_samples(path)
     assert data.channels == 1 and np.all(data.rgb == data.rgb[:, :1])
     r = brdffit.fit(path, "ggx")
-    assert r.success and r.free == ["diffuse[0]", "f0[0]", "alpha", "f90"] and r.fixed == []
+    assert r.success and r.free == ["diffuse[0]", "f0[0]", "alpha", "grazing"] and r.fixed == []
     assert r.params["f0"] == [r.params["f0"][0]] * 3  # grey
     for name, true in grey.items():
         np.testing.assert_allclose(r.params[name], true, rtol=1e-4)

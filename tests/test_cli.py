@@ -102,7 +102,7 @@ def test_models_lists_the_registry(capsys):
     assert all(name in out for name in brdffit.available_models())
     assert main(["models", "ggx", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert [p["name"] for p in d["params"]] == ["diffuse", "f0", "alpha", "f90"]
+    assert [p["name"] for p in d["params"]] == ["diffuse", "f0", "alpha", "grazing"]
     assert d["params"][2]["lower"] == 1e-3 and d["params"][2]["log"] is True
 
 

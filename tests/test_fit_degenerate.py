@@ -43,15 +43,16 @@ def _cost_at(result, table, params):
 
 @pytest.mark.parametrize("loss", ["linear", "cosine"])
 def test_lambertian_table_is_reproduced_by_ggx_with_f0_and_f90_at_zero(cells, loss):
-    """ggx is Lambertian only with ``F0 = F90 = 0`` (plain Schlick's grazing term would stay at
-    ``F0 = 0``), so the optimum has both on their lower bounds (``α`` then changes nothing) and
+    """ggx is Lambertian only with ``F0 = F90 = 0`` (``F0 = 0`` and no grazing rise: plain
+    Schlick's grazing term would stay), so the optimum has ``f0`` and ``grazing`` on their
+    lower bounds (``α`` then changes nothing) and
     reproduces the table. A constant table determines no lobe: the verdict says so."""
     table = _table(cells, LAMBERT / np.pi, "lambert")
     res = brdffit.fit(table, "ggx", loss=loss, throw=False)
     assert not res.success and res.status == "degenerate" and res.optimality <= 1e-9
     assert res.not_identified == ["alpha"]
-    assert res.params["f0"] == [0.0, 0.0, 0.0] and res.params["f90"] == 0.0
-    assert res.at_bound["f90"] == "lower"
+    assert res.params["f0"] == [0.0, 0.0, 0.0] and res.params["grazing"] == 0.0
+    assert res.at_bound["grazing"] == "lower" and res.derived["f90"] == [0.0, 0.0, 0.0]
     np.testing.assert_allclose(res.params["diffuse"], LAMBERT, rtol=1e-6)
     assert res.cost < 1e-20  # the Lambertian table itself, to rounding
 
@@ -59,7 +60,7 @@ def test_lambertian_table_is_reproduced_by_ggx_with_f0_and_f90_at_zero(cells, lo
 def test_a_cost_that_depends_on_nothing_is_not_a_success(cells):
     """Every reflecting term held at zero, α left free: the model is 0 whatever α, the
     gradient and JᵀJ vanish; the start is a 'stationary point' the data do not determine."""
-    res = brdffit.fit(cells, "ggx", fixed={"f0": 0.0, "f90": 0.0, "diffuse": 0.0}, throw=False)
+    res = brdffit.fit(cells, "ggx", fixed={"f0": 0.0, "grazing": 0.0, "diffuse": 0.0}, throw=False)
     assert not res.success and res.status == "degenerate"
     assert "determine nothing" in res.message
     assert res.not_identified == ["alpha"] and math.isnan(res.stderr["alpha"])
@@ -75,7 +76,7 @@ def test_an_all_zero_table_ends_on_the_bounds_it_belongs_on(cells):
     res = brdffit.fit(_table(cells, 0.0, "zero"), "ggx", loss="linear", throw=False)
     assert not res.success and res.status == "degenerate"  # zeros determine no parameter
     assert res.params["diffuse"] == [0.0, 0.0, 0.0] and res.params["f0"] == [0.0, 0.0, 0.0]
-    assert res.params["f90"] == 0.0  # no reflection at all: α then changes nothing
+    assert res.params["grazing"] == 0.0  # no reflection at all: α then changes nothing
 
 
 @pytest.mark.parametrize("option", [dict(rtol=9223372036854775807), dict(ftol=2.0),

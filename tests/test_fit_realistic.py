@@ -117,26 +117,27 @@ def test_single_lobe_models_converge_on_every_embedded_material(cells, name, mod
 
 @pytest.mark.parametrize("name", ["brass", "nickel", "specular-black-phenolic", "ss440"])
 def test_a_parameter_pressed_on_its_bound_keeps_newton_convergence(cells, name):
-    """``beckmann`` on materials whose grazing cells press ``F90`` on 0: the second-order term's
+    """``beckmann`` on materials whose grazing cells press the grazing rise on 0 (no rise,
+    ``F90 = F0``; a free ``F90`` went to 0, below ``F0``): the second-order term's
     curvature along that held coordinate is strongly negative, and a Newton model that then
     fell back to Gauss–Newton's converged linearly (8–15 steps on these 20,000 cells; 7–8
     full-table steps on full tables). With the held coordinate left out of the Newton model
     (:func:`brdffit.fitting.normal_form.compress_newton`) each takes 3 steps."""
     res = brdffit.fit(cells[name], "beckmann", throw=False)
     check_honest(res, "beckmann")
-    assert res.params["f90"] == 0.0 and res.at_bound["f90"] == "lower"
+    assert res.params["grazing"] == 0.0 and res.at_bound["grazing"] == "lower"
     assert res.steps <= 4, res.steps
 
 
 @pytest.mark.parametrize("model_name, weighting", [("ggx", "angles"), ("beckmann", "samples")])
 def test_a_metal_has_no_diffuse_term(cells, model_name, weighting):
-    """Nickel under plain Schlick (``F90 = 1``): the optimum has no Lambertian part; the albedos
-    end exactly at 0 (not 1e-6 with an error bar), are reported at the bound and have no
-    standard error. With ``F90`` free the fit puts ``F90`` at 0 and a Lambert term of 0.05–0.2
-    in its place (the proxy's grazing cells). ``beckmann``
+    """Nickel under plain Schlick (``grazing = 1``, ``F90 = 1``): the optimum has no Lambertian
+    part; the albedos end exactly at 0 (not 1e-6 with an error bar), are reported at the bound
+    and have no standard error. With the grazing rise free the fit puts it at 0 and a Lambert
+    term of 0.05–0.2 in its place (the proxy's grazing cells). ``beckmann``
     keeps a Lambert term of about 0.1 under the default weighting, which counts the rows far
     from the peak (where the proxy has a floor) more; counting every cell once, it has none."""
-    res = brdffit.fit(cells["nickel"], model_name, fixed={"f90": 1.0}, weighting=weighting)
+    res = brdffit.fit(cells["nickel"], model_name, fixed={"grazing": 1.0}, weighting=weighting)
     assert res.params["diffuse"] == [0.0, 0.0, 0.0]
     assert all(res.at_bound[f"diffuse[{c}]"] == "lower" for c in range(3))
     assert all(np.isnan(s) for s in res.stderr["diffuse"])
@@ -197,13 +198,13 @@ def test_weighting_cells_by_their_share_of_the_angles_brings_a_sharp_lobe_to_the
 
 @pytest.mark.parametrize("name", ["light-red-paint", "pink-plastic"])
 def test_a_free_grazing_reflectance_is_what_brings_the_roughness_to_the_literature(cells, name):
-    """These paints do not reflect everything at grazing angles: the fitted ``F90`` is far
-    below 1, and with plain Schlick (``F90 = 1`` held) the lobe comes out more than 1.5× too
-    rough, at a higher cost."""
+    """These paints do not reflect everything at grazing angles: the fitted grazing rise is
+    far below 1, and with plain Schlick (``grazing = 1`` held) the lobe comes out more than
+    1.5× too rough, at a higher cost."""
     ngan, low = realistic.published()[name]
     free = brdffit.fit(cells[name], "beckmann")
-    plain = brdffit.fit(cells[name], "beckmann", fixed={"f90": 1.0})
-    assert free.params["f90"] < 0.3
+    plain = brdffit.fit(cells[name], "beckmann", fixed={"grazing": 1.0})
+    assert free.params["grazing"] < 0.3
     assert plain.params["alpha"] / np.sqrt(ngan * low) > 1.5
     assert free.cost < plain.cost
 

@@ -89,7 +89,7 @@ def fixed_for(name, truth):
 
 def truth_at_bound(model, truth):
     """Flat name → ``"lower"``/``"upper"`` for the scalars whose true value is on a bound (an
-    ``f90`` left at its default 1: a table of plain Schlick lobes)."""
+    ``grazing`` left at its default 1: a table of plain Schlick lobes)."""
     lo, hi = model.flat_bounds()
     x = model.flatten(truth)
     return {n: ("lower" if v == a else "upper")
@@ -184,18 +184,18 @@ def test_at_bound_reporting(merl_table):
     # The table's values carry ~1e-7 relative rounding: the optimum of a channel may sit just
     # inside the bound (measured: 0.9e-6 to 1.0e-6, the at-bound tolerance is 1e-6 of the range)
     assert np.all(np.asarray(res.params["diffuse"]) < 2e-6)
-    assert set(res.at_bound) <= {f"diffuse[{i}]" for i in range(3)} | {"f90"}
-    assert res.at_bound.get("f90", "upper") == "upper"
-    assert res.params["f90"] == pytest.approx(1.0, abs=1e-3)  # the table is plain Schlick
-    for key in set(res.at_bound) - {"f90"}:
+    assert set(res.at_bound) <= {f"diffuse[{i}]" for i in range(3)} | {"grazing"}
+    assert res.at_bound.get("grazing", "upper") == "upper"
+    assert res.params["grazing"] == pytest.approx(1.0, abs=1e-3)  # the table is plain Schlick
+    for key in set(res.at_bound) - {"grazing"}:
         assert res.at_bound[key] == "lower" and np.isnan(res.stderr["diffuse"][int(key[-2])])
     assert abs(res.params["alpha"] / 0.05 - 1) < 1e-3
     # a user bound that excludes the optimum: every channel pinned at it
     pinned = brdffit.fit(table, name, subsample=SUB, bounds={"diffuse": (0.01, 1.0)})
     assert pinned.success
-    assert {k: v for k, v in pinned.at_bound.items() if k != "f90"} == {
+    assert {k: v for k, v in pinned.at_bound.items() if k != "grazing"} == {
         f"diffuse[{i}]": "lower" for i in range(3)}
-    assert pinned.at_bound.get("f90", "upper") == "upper"
+    assert pinned.at_bound.get("grazing", "upper") == "upper"
     assert all(np.isnan(pinned.stderr["diffuse"]))
     # "at a bound": within 1e-6 of the range (transforms.AT_BOUND_TOL)
     np.testing.assert_allclose(pinned.params["diffuse"], 0.01, rtol=0, atol=1e-6)

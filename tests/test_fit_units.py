@@ -161,7 +161,7 @@ def test_second_order_term_matches_finite_differences():
     """``Problem.block_second_order`` = Hessian of ½Σr² − JᵀJ, against central differences of
     the gradient (from the dense Jacobian) on a noisy table (large residuals)."""
     model = brdffit.get_model("ggx")
-    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2, "f90": 0.6}
+    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2, "grazing": 0.6}
     s = ggx_samples(400, x0, noise=0.3)
     prob = _problem("ggx", tuple(range(8)), x0)
     sel = select(s, prob.loss)
@@ -187,7 +187,7 @@ def test_second_order_of_a_stage_is_the_exact_term_of_its_leading_blocks():
     ``per_pass`` model's forward-mode gradients: the ``gtr`` test below.)"""
     from brdffit.fitting import solve as sv
 
-    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2, "f90": 0.6}
+    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2, "grazing": 0.6}
     sel = select(ggx_samples(11 * 4096 - 100, x0, noise=0.3), get_loss("log"))  # 11 blocks
     prob = dataclasses.replace(_problem("ggx", tuple(range(8)), x0), chunks=sel.chunks)
     z = jnp.asarray(to_box(brdffit.get_model("ggx").flatten(x0), np.asarray(prob.slo),
@@ -223,7 +223,7 @@ def test_second_order_of_a_model_with_per_pass_tables_is_the_exact_term():
 
     model = brdffit.get_model("gtr")
     x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.25, "gamma": 1.6,
-          "f90": 0.6}
+          "grazing": 0.6}
     rng = np.random.default_rng(3)
     wi, wo = hemisphere(3000, rng), hemisphere(3000, rng)
     rgb = evaluate_model(model, x0, wi, wo) * np.exp(rng.normal(0, 0.3, (3000, 3)))
@@ -256,7 +256,7 @@ def test_second_order_program_compiled_ahead_is_the_one_the_fit_then_calls(caplo
     from brdffit.fitting.solve import compile_second_ahead, second_order
 
     model = brdffit.get_model("ggx")
-    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2, "f90": 0.6}
+    x0 = {"diffuse": [0.3, 0.2, 0.1], "f0": [0.05, 0.04, 0.03], "alpha": 0.2, "grazing": 0.6}
     with jax.enable_x64(x64), warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # "float64 ... truncated to float32"
         prob = _problem("ggx", tuple(range(8)), x0)
@@ -448,7 +448,7 @@ def test_tables_built_once_per_pass_give_the_same_jacobian():
                                   np.asarray(model.fn(p, wi, wo)))
     free = (0, 1, 2, 3, 5, 6, 7, 8)  # f0[1] fixed
     prob = _problem("gtr", free, {"diffuse": [0.3, 0.2, 0.1], "f0": [0.1, 0.2, 0.3], "alpha": 0.2,
-                                  "gamma": 1.5, "f90": 0.7})
+                                  "gamma": 1.5, "grazing": 0.7})
     sel = select(ggx_samples(400), get_loss("log"))
     u = jnp.asarray(RNG.uniform(0.1, 0.9, size=len(free)))
     got = jax.jit(lambda q, v, d: q.block_sums(v, d, q.pass_tables(v)))(prob, u, sel.data)
@@ -610,7 +610,7 @@ def test_option_errors_name_the_choices():
     with pytest.raises(ConfigError, match="lower bound must be > 0"):
         brdffit.fit(s, "ggx", bounds={"alpha": (0.0, 0.5)})
     with pytest.raises(FitError, match="nothing to fit"):
-        brdffit.fit(s, "ggx", fixed={"diffuse": 0.1, "f0": 0.1, "alpha": 0.1, "f90": 1.0})
+        brdffit.fit(s, "ggx", fixed={"diffuse": 0.1, "f0": 0.1, "alpha": 0.1, "grazing": 1.0})
     with pytest.raises(UnknownNameError, match="sandwich"):
         brdffit.fit(s, "ggx", covariance="hessian")
 

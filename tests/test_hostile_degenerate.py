@@ -65,9 +65,9 @@ def test_information_free_data_raise_with_throw(cells):
 
 
 def test_a_switched_off_lobe_has_no_error_bar(cells):
-    """f0 = f90 = 0 switches ggx's lobe off: α changes nothing and gets no standard error
+    """f0 = 0 with no grazing rise switches ggx's lobe off: α changes nothing and gets no standard error
     (it had ``0.0225 ± 3.1e-5``); the diffuse albedo the data determine keeps its."""
-    res = brdffit.fit(cells, "ggx", fixed={"f0": [0.0, 0.0, 0.0], "f90": 0.0}, throw=False)
+    res = brdffit.fit(cells, "ggx", fixed={"f0": [0.0, 0.0, 0.0], "grazing": 0.0}, throw=False)
     assert res.success, res.message  # the fit itself converged; the data are not flat
     assert res.not_identified == ["alpha"] and math.isnan(res.stderr["alpha"])
     assert "not identified by the data" in res.message and "alpha" in res.message
@@ -119,7 +119,7 @@ def test_data_beyond_any_physical_reflectance_are_implausible(cells):
 def test_an_exact_synthetic_table_is_a_clean_success(cells):
     """Zero residual: no 0/0 anywhere, every free scalar off its bounds identified."""
     model = brdffit.get_model("ggx")
-    truth = {"diffuse": [0.2, 0.3, 0.4], "f0": [0.9, 0.6, 0.3], "alpha": 0.2, "f90": 0.8}
+    truth = {"diffuse": [0.2, 0.3, 0.4], "f0": [0.9, 0.6, 0.3], "alpha": 0.2, "grazing": 0.8}
     p = model.unflatten(jnp.asarray(model.flatten(truth)))
     rgb = np.asarray(model.fn(p, jnp.asarray(cells.wi), jnp.asarray(cells.wo)))
     res = brdffit.fit(_table(cells, rgb, "exact"), "ggx", throw=False)
@@ -160,7 +160,7 @@ def test_cli_zero_sample_list_exits_1_with_a_marked_result(tmp_path, capsys):
 def test_a_batch_row_names_the_verdict_and_the_parameters_not_identified(cells):
     from brdffit.batch.table import OUTCOMES, result_row
 
-    res = brdffit.fit(cells, "ggx", fixed={"f0": 0.0, "f90": 0.0, "diffuse": 0.0}, throw=False)
+    res = brdffit.fit(cells, "ggx", fixed={"f0": 0.0, "grazing": 0.0, "diffuse": 0.0}, throw=False)
     row = result_row(res)
     assert row["outcome"] == "degenerate" in OUTCOMES and row["not_identified"] == "alpha"
     assert row["success"] is False

@@ -272,9 +272,10 @@ def test_unknown_model_and_parameter_errors_list_valid_names():
 # --- A plain NumPy transcription of the single-lobe models (independent of brdffit's pieces) ---
 
 
-def _np_ggx_lobe(wi, wo, diffuse, f0, alpha, f90=1.0):
+def _np_ggx_lobe(wi, wo, diffuse, f0, alpha, t=1.0):
     """Lambert + GGX (RTR 9.41), height-correlated Smith (9.31, 9.42), generalized Schlick
-    (9.18, which is 9.16 at ``F90 = 1``); 9.34."""
+    (9.18 with ``F90 = F0 + (1 − F0) t``, which is 9.16 at ``t = 1``); 9.34."""
+    f90 = f0 + (1 - f0) * t
     h = wi + wo
     h = h / np.linalg.norm(h, axis=-1, keepdims=True)
     ci, co, ch = wi[:, 2], wo[:, 2], h[:, 2]
@@ -288,13 +289,13 @@ def _np_ggx_lobe(wi, wo, diffuse, f0, alpha, f90=1.0):
     return diffuse / np.pi + F * (G2 * D / (4 * ci * co))[:, None]
 
 
-@pytest.mark.parametrize("f90", [None, 1.0, 0.3, 0.0])
-def test_ggx_model_matches_numpy_transcription(f90):
-    """Without ``f90`` the model takes its default, 1: plain Schlick (RTR eq. 9.16)."""
+@pytest.mark.parametrize("t", [None, 1.0, 0.3, 0.0])
+def test_ggx_model_matches_numpy_transcription(t):
+    """Without ``grazing`` the model takes its default, 1: plain Schlick (RTR eq. 9.16)."""
     wi, wo = _random_pairs(500, 8)
     p = dict(diffuse=np.array([0.1, 0.2, 0.3]), f0=np.array([0.9, 0.5, 0.04]), alpha=0.17)
-    given = p if f90 is None else dict(p, f90=f90)
-    ref = _np_ggx_lobe(np.asarray(wi), np.asarray(wo), **p, f90=1.0 if f90 is None else f90)
+    given = p if t is None else dict(p, grazing=t)
+    ref = _np_ggx_lobe(np.asarray(wi), np.asarray(wo), **p, t=1.0 if t is None else t)
     np.testing.assert_allclose(get_model("ggx")(given, wi, wo), ref, rtol=1e-10)
 
 
@@ -303,15 +304,15 @@ def test_two_lobe_ggx_is_the_blend_of_its_lobes_and_contains_ggx():
     ``m = 1`` are ``ggx`` with ``α₁`` and ``α₂`` exactly (the fit starts there)."""
     wi, wo = _random_pairs(300, 9)
     a, b = np.asarray(wi), np.asarray(wo)
-    d, f0, f90 = np.array([0.1, 0.2, 0.3]), np.array([0.9, 0.5, 0.2]), 0.6
+    d, f0, t = np.array([0.1, 0.2, 0.3]), np.array([0.9, 0.5, 0.2]), 0.6
     two = get_model("two-lobe-ggx")
-    ref = (_np_ggx_lobe(a, b, 0.0, f0, 0.03, f90) * 0.7
-           + _np_ggx_lobe(a, b, 0.0, f0, 0.4, f90) * 0.3)
-    got = two(dict(diffuse=d, f0=f0, alpha_1=0.03, alpha_2=0.4, mix=0.3, f90=f90), wi, wo)
+    ref = (_np_ggx_lobe(a, b, 0.0, f0, 0.03, t) * 0.7
+           + _np_ggx_lobe(a, b, 0.0, f0, 0.4, t) * 0.3)
+    got = two(dict(diffuse=d, f0=f0, alpha_1=0.03, alpha_2=0.4, mix=0.3, grazing=t), wi, wo)
     np.testing.assert_allclose(got, ref + d / np.pi, rtol=1e-10)
     for m, alpha in ((0.0, 0.03), (1.0, 0.4)):
-        one = get_model("ggx")(dict(diffuse=d, f0=f0, alpha=alpha, f90=f90), wi, wo)
-        got = two(dict(diffuse=d, f0=f0, alpha_1=0.03, alpha_2=0.4, mix=m, f90=f90), wi, wo)
+        one = get_model("ggx")(dict(diffuse=d, f0=f0, alpha=alpha, grazing=t), wi, wo)
+        got = two(dict(diffuse=d, f0=f0, alpha_1=0.03, alpha_2=0.4, mix=m, grazing=t), wi, wo)
         np.testing.assert_array_equal(np.asarray(got), np.asarray(one))
 
 
@@ -333,9 +334,10 @@ def test_ggx_aniso_reduces_to_isotropic_and_matches_rtr_9_53():
 # --- The other single-lobe models, written out in NumPy from their equations ---------------
 
 
-def _np_single_lobe(wi, wo, diffuse, f0, D, Lam, f90=1.0):
-    """RTR eq. 9.34 with height-correlated G2 (9.31) and generalized Schlick (9.18), plus
-    Lambert (9.61)."""
+def _np_single_lobe(wi, wo, diffuse, f0, D, Lam, t=1.0):
+    """RTR eq. 9.34 with height-correlated G2 (9.31) and generalized Schlick (9.18,
+    ``F90 = F0 + (1 − F0) t``), plus Lambert (9.61)."""
+    f90 = f0 + (1 - f0) * t
     h = wi + wo
     h = h / np.linalg.norm(h, axis=-1, keepdims=True)
     ci, co = wi[:, 2], wo[:, 2]
@@ -359,9 +361,9 @@ def _np_beckmann(alpha):
 
 def test_beckmann_model_matches_numpy_transcription():
     wi, wo = _random_pairs(400, 11)
-    p = dict(diffuse=np.array([0.3, 0.2, 0.1]), f0=np.array([0.7, 0.5, 0.2]), alpha=0.21, f90=0.45)
+    p = dict(diffuse=np.array([0.3, 0.2, 0.1]), f0=np.array([0.7, 0.5, 0.2]), alpha=0.21, grazing=0.45)
     ref = _np_single_lobe(np.asarray(wi), np.asarray(wo), p["diffuse"], p["f0"], *_np_beckmann(0.21),
-                          f90=0.45)
+                          t=0.45)
     np.testing.assert_allclose(get_model("beckmann")(p, wi, wo), ref, rtol=1e-9)
 
 
@@ -371,10 +373,10 @@ def test_blinn_phong_model_matches_numpy_transcription():
     ap = 2 / alpha**2 - 2
     _, lam = _np_beckmann(alpha)
     wi, wo = _random_pairs(400, 12)
-    p = dict(diffuse=0.25, f0=np.array([0.9, 0.6, 0.3]), alpha=alpha, f90=0.2)
+    p = dict(diffuse=0.25, f0=np.array([0.9, 0.6, 0.3]), alpha=alpha, grazing=0.2)
     ref = _np_single_lobe(
         np.asarray(wi), np.asarray(wo), 0.25, p["f0"], lambda c: (ap + 2) / (2 * np.pi) * c**ap, lam,
-        f90=0.2,
+        t=0.2,
     )
     np.testing.assert_allclose(get_model("blinn-phong")(p, wi, wo), ref, rtol=1e-9)
 

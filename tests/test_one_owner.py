@@ -128,7 +128,7 @@ def test_a_reader_is_one_registry_entry(monkeypatch, tmp_path, capsys):
     angles = np.column_stack([rng.uniform(0, 80, 600), rng.uniform(0, 360, 600),
                               rng.uniform(0, 80, 600), rng.uniform(0, 360, 600)])
     truth = {"alpha": 0.2, "f0": np.array([0.9, 0.6, 0.3]), "diffuse": np.full(3, 0.1),
-             "f90": 1.0}
+             "grazing": 1.0}
     model = brdffit.get_model("ggx")
     t = np.radians(angles)
     wi = np.stack([np.sin(t[:, 0]) * np.cos(t[:, 1]), np.sin(t[:, 0]) * np.sin(t[:, 1]),
@@ -143,7 +143,7 @@ def test_a_reader_is_one_registry_entry(monkeypatch, tmp_path, capsys):
     assert ".toy" in capsys.readouterr().out
     assert main(["info", str(path)]) == 0
     assert "600" in capsys.readouterr().out  # its measurements counted
-    result = brdffit.fit(path, "ggx", fixed={"f90": 1.0})
+    result = brdffit.fit(path, "ggx", fixed={"grazing": 1.0})
     assert result.success and result.params["alpha"] == pytest.approx(0.2, rel=1e-4)
     assert inputs.expand([str(path)]) == [str(path)]  # a batch input, not a list of paths
 

@@ -38,7 +38,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SIGMA = 0.01
 SUB = 600  # cells: one size everywhere, so the fit and the log-posterior compile once
 CUTOFF = 60.0  # g(ρ) ≥ 4.7 SIGMA inside it: no noisy cell goes negative (and gets dropped)
-GGX_TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.15, "f90": 0.8}
+GGX_TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.15, "grazing": 0.8}
 GTR_TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.15, "gamma": 1.5}
 
 
@@ -148,7 +148,7 @@ def test_gtr_shape_credible_intervals_cover_truth_and_match_least_squares(tmp_pa
     within 1e-4 of it (0.14999978 to 0.15008 over runs that differed only in rounding): the
     coverage is checked with the 99% interval."""
     table = noisy_table(tmp_path / "gtr.binary", "gtr", GTR_TRUTH, (20, 20, 40), seed=4)
-    fixed = {"diffuse": GTR_TRUTH["diffuse"], "f0": GTR_TRUTH["f0"], "f90": 1.0}
+    fixed = {"diffuse": GTR_TRUTH["diffuse"], "f0": GTR_TRUTH["f0"], "grazing": 1.0}
     with warnings.catch_warnings():
         warnings.simplefilter("error", ChainTooShortWarning)
         post = sample_posterior(table, "gtr", fixed=fixed, cutoff=CUTOFF, subsample=300,
@@ -221,7 +221,7 @@ def test_fixed_stay_fixed_and_noise_can_be_sampled(ggx_table):
     fit = brdffit.fit(ggx_table, "ggx", cutoff=CUTOFF, subsample=SUB, seed=5,
                       fixed={"f0": GGX_TRUTH["f0"]})
     post = short_run(ggx_table, fit, noise="sampled", nsteps=100, burn=50)
-    assert post.sampled == ["diffuse[0]", "diffuse[1]", "diffuse[2]", "alpha", "f90", "sigma"]
+    assert post.sampled == ["diffuse[0]", "diffuse[1]", "diffuse[2]", "alpha", "grazing", "sigma"]
     assert post.fixed == ["f0[0]", "f0[1]", "f0[2]"] and post.params["f0"] == GGX_TRUTH["f0"]
     assert post.noise["mode"] == "sampled" and "sigma" in post.percentiles
     assert abs(post.noise["sigma"] / SIGMA - 1) < 0.15

@@ -18,12 +18,17 @@ Columns, in this order (:data:`BASE_COLUMNS`, then per-result columns in order o
 * ``steps``, ``time`` (seconds of the fit itself), ``job_time`` (seconds of the whole job on its
   worker: reading, fitting, writing), ``cost``, ``n_cells``, ``at_bound`` (``name=lower;...``),
   ``not_identified`` (``name;...``: free parameters the data do not determine; no ``se_``).
+* ``plausible`` (the fitted material passed every plausibility check:
+  :mod:`brdffit.fitting.plausibility`; empty for a job without a result or a result older
+  than the verdict), ``implausible`` (``name;...``: the checks it failed), ``albedo_max``
+  (the ``energy`` check's largest directional albedo).
 * ``input`` (the path, or ``<memory>``), ``checksum`` (``sha256:`` of the input),
   ``options`` (the key of the model and fit options, see :func:`brdffit.batch.jobs.options_key`),
   ``brdffit_version``, ``worker``, ``result`` (the JSON result's path, relative to the outdir).
 * Then every error metric of the results (``rmse``, ``rmse_cosine``, ``rmse_log``, ``rel_error``)
   and, for every fitted parameter's flat name (``alpha``, ``f0[0]`` …), ``p_<name>`` and its
-  standard error ``se_<name>``; NaN where a model has no such parameter or a job failed.
+  standard error ``se_<name>``, then ``p_<name>`` of every quantity the model derives from
+  them (``p_f90[0]`` …, no ``se_``); NaN where a model has no such parameter or a job failed.
 """
 
 from __future__ import annotations
@@ -35,7 +40,8 @@ import numpy as np
 
 BASE_COLUMNS = (
     "material", "model", "success", "outcome", "message", "skipped", "steps", "time", "job_time",
-    "cost", "n_cells", "at_bound", "not_identified", "input", "checksum", "options", "brdffit_version", "worker",
+    "cost", "n_cells", "at_bound", "not_identified", "plausible", "implausible", "albedo_max",
+    "input", "checksum", "options", "brdffit_version", "worker",
     "result",
 )
 #: ``degenerate`` and ``implausible`` (:data:`brdffit.fitting.outcome.DATA_VERDICTS`, spelled
@@ -71,10 +77,23 @@ def result_row(result) -> dict:
         "at_bound": ";".join(f"{k}={v}" for k, v in sorted(result.at_bound.items())),
         "not_identified": ";".join(result.not_identified),
     }
+    row.update(_plausibility(result.plausibility))
     row.update({k: float(v) for k, v in result.metrics.items()})
     row.update(_flat("p_", result.params))
     row.update(_flat("se_", result.stderr))
+    row.update(_flat("p_", result.derived))
     return row
+
+
+def _plausibility(record: dict) -> dict:
+    """The verdict's columns; none for a result without one (older than the verdict)."""
+    if not record:
+        return {}
+    checks = record.get("checks", [])
+    energy = [c["value"] for c in checks if c["name"] == "energy"]
+    return {"plausible": bool(record["plausible"]),
+            "implausible": ";".join(c["name"] for c in checks if c["passed"] is False),
+            "albedo_max": float(energy[0]) if energy else float("nan")}
 
 
 def failure_row(outcome: str, message: str) -> dict:
@@ -236,6 +255,11 @@ def summary(df, wall_time: float, where: str = "") -> str:
         lines.append("not successful:")
         lines += [f"  {r.material} × {r.model}: {r.outcome}{' (skipped)' * bool(r.skipped)}: "
                   f"{r.message}" for r in bad.itertuples()]
+    odd = df[df["plausible"].eq(False)] if "plausible" in df else df.iloc[:0]
+    if len(odd):
+        lines.append("implausible materials (the failed plausibility checks; see each result's "
+                     "summary):")
+        lines += [f"  {r.material} × {r.model}: {r.implausible}" for r in odd.itertuples()]
     best = best_models(df)
     if best:
         lines.append(f"best model per material (lowest {RANK_BY} among converged fits):")

@@ -222,6 +222,7 @@ def run(args) -> int:
         print(text if args.json else "\n".join(lines))
         sys.stdout.flush()  # a failed stdout publishes nothing
         outputs.publish()
+    warn_implausible(result)
     if not result.success:
         from ..fitting import DATA_VERDICTS
 
@@ -231,6 +232,18 @@ def run(args) -> int:
               f"marked success=false", file=sys.stderr)
         return 1
     return 0
+
+
+def warn_implausible(result) -> None:
+    """One warning line on stderr when the fitted material fails a plausibility check
+    (:mod:`brdffit.fitting.plausibility`), whether or not the fit converged; the exit code
+    stays what convergence makes it."""
+    from ..fitting import plausibility_warning
+
+    line = plausibility_warning(result.plausibility, f"the {result.model_name} fit of "
+                                f"{result.table or 'the table'}")
+    if line:
+        print(f"brdffit fit: warning: {cli_words(line)}", file=sys.stderr)
 
 
 def _run_several(args, models, options) -> int:
@@ -270,6 +283,8 @@ def _fit_several(args, models, options, outputs) -> int:
         outputs.write(args.out, lambda tmp: write_text(tmp, text + "\n"))
     sys.stdout.flush()  # a failed stdout publishes nothing
     outputs.publish()
+    for r in results:
+        warn_implausible(r)
     failed = [r.model_name for r in results if not r.success]
     if failed:
         print(f"brdffit fit: warning: {', '.join(failed)} did not converge; see the summaries",

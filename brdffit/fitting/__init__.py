@@ -10,7 +10,8 @@ listed may change without notice.
 * the fit: :func:`fit`, its options (:data:`FIT_DEFAULTS`, :func:`fit_options`,
   :class:`Settings`, :func:`tolerances`, :func:`default_precision`, :data:`WEIGHTINGS`) and its result
   (:class:`FitResult`, :class:`FittedModel`, :func:`json_safe`, :func:`value_with_error`,
-  its report :func:`fit_report`,
+  its report :func:`fit_report`, the one line that says a fitted material is implausible
+  (:func:`plausibility_warning`, :mod:`brdffit.fitting.plausibility`),
   the statuses that say the data cannot give a fit (:data:`DATA_VERDICTS`), and the errors
   of reading one back, :class:`ResultFormatError`, :class:`ResultChoiceError`);
 * the registries: losses (:data:`LOSSES`, :data:`DEFAULT_LOSS`, :func:`get_loss`,
@@ -28,6 +29,7 @@ from .losses import DEFAULT_LOSS, LOSSES, Loss, get_loss
 from .outcome import DATA_VERDICTS
 from .options import FIT_DEFAULTS, Settings, default_precision, fit_options, tolerances
 from .parameters import Scalars, assign
+from .plausibility import warning_text as plausibility_warning
 from .problem import Problem
 from .report import fit_report, value_with_error
 from .result import FitResult, FittedModel, json_safe
@@ -63,6 +65,7 @@ __all__ = [
     "fit_report",
     "get_loss",
     "json_safe",
+    "plausibility_warning",
     "measure",
     "select",
     "tolerances",

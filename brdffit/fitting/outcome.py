@@ -10,6 +10,9 @@ distinct directions than the free scalars need, on data beyond any physical refl
 ``degenerate`` or ``implausible``, whatever the solver said. A free scalar the data do not
 identify gets no standard error (``NaN``; ``null`` in JSON) and is listed in
 ``FitResult.not_identified``; the fit can still succeed (Disney's sheen on a metal).
+
+Every result also carries the plausibility verdict on the fitted material
+(:mod:`brdffit.fitting.plausibility`), beside and independent of ``success``.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from ..errors import FitError
 from .data import Selection
 from .options import Settings
 from .parameters import Scalars
+from .plausibility import assess, verdict_record
 from .problem import Problem
 from .result import FitResult
 from .solve import Solved
@@ -271,6 +275,8 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
         table=prep.name, covariance=s.covariance, optimality=float(best.omega),
         not_identified=[names[free[i]] for i in np.flatnonzero(lost) if best.finite],
     )
+    result.plausibility = verdict_record(assess(model, result.params, result.metrics,
+                                                result.loss))
     if throw and not v.success:
         failed = "did not converge" if v.status not in DATA_VERDICTS else f"is {v.status}"
         raise FitError(f"{model.name} fit of {prep.name or 'table'} {failed}: {v.message} "

@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from ..metrics import METRICS, metric_text
+from .plausibility import summary_lines
 from .statistics import ESTIMATOR_CAVEAT, estimator_text
 
 #: Correlations listed by the reports: those at least this strong (absolute value).
@@ -143,6 +144,10 @@ def fit_report(result, *, min_correl: float = MIN_CORRELATION) -> str:
                      + (f" {m.label}: {m.formula}" if m else ""))
     lines.append("[[Variables]]")
     lines += _variables(result)
+    lines += [f"    {r['name']}  {r['value']:.6g}  derived from the parameters"
+              for r in result.derived_rows()]
+    lines.append("[[Plausibility]]")
+    lines += [line[2:] for line in summary_lines(result.plausibility)]
     pairs = strongest_correlations(result, min_correl)
     lines.append(f"[[Correlations]] (|r| ≥ {min_correl:g}, strongest first)")
     lines += [f"    C({a}, {b}) = {c:+.3f}" for a, b, c in pairs[:MAX_LISTED]] or ["    none"]
@@ -223,7 +228,8 @@ def report_html(result, *, min_correl: float = MIN_CORRELATION) -> str:
     pairs = strongest_correlations(result, min_correl)
     corr = ", ".join(f"{_esc(a)}–{_esc(b)} {c:+.3f}" for a, b, c in pairs[:MAX_LISTED])
     more = f" (and {len(pairs) - MAX_LISTED} more)" if len(pairs) > MAX_LISTED else ""
-    return (f"<div class='brdffit-fit'><p>{head}</p>{msg}{params}"
+    plaus = "<br>".join(_esc(line.strip()) for line in summary_lines(result.plausibility))
+    return (f"<div class='brdffit-fit'><p>{head}</p>{msg}<p>{plaus}</p>{params}"
             f"<table>{stats}</table><p><small>{_esc(CRITERIA_CAVEAT)}</small></p>"
             f"<table><tr><th>metric</th><th>value</th><th>meaning</th></tr>{metrics}</table>"
             f"<p>strongest correlations (|r| ≥ {min_correl:g}): {corr or 'none'}{more}</p>"

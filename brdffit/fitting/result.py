@@ -7,6 +7,11 @@ ended at a bound, and timings. ``result.model(wi, wo)`` evaluates the fitted BRD
 :meth:`FitResult.from_json` reads a path or JSON text back, every field checked
 (:mod:`brdffit.fitting.result_json`).
 
+Every result carries a plausibility verdict beside convergence (``plausibility``: is the
+fitted material one a renderer can trust; :mod:`brdffit.fitting.plausibility`), and the
+quantities its model derives from the parameters (``derived``: the standard models' grazing
+reflectance ``f90``), which the summary, :meth:`FitResult.rows` and the JSON report.
+
 For people: ``summary()`` (a few lines), ``report()`` and the notebook's HTML view (lmfit's
 ``fit_report``: :mod:`brdffit.fitting.report`, with :attr:`FitResult.correlation`,
 :attr:`FitResult.aic`, :attr:`FitResult.bic`). The metrics' names and meanings are those of
@@ -106,6 +111,10 @@ class FitResult:
         not_identified: flat names of the free scalars off their bounds that the data do not
             identify (:mod:`brdffit.fitting.statistics`): held at their values, no standard
             error, zero rows in ``cov``.
+        plausibility: the verdict on the fitted material
+            (:func:`brdffit.fitting.plausibility.verdict_record`): ``plausible`` and the
+            ``checks`` (name, passed, value, limit, meaning); empty for a result read from a
+            file older than the verdict. Independent of ``success``.
     """
 
     model_name: str
@@ -136,12 +145,32 @@ class FitResult:
     optimality: float = float("nan")
     provenance: dict = dataclasses.field(default_factory=dict)
     not_identified: list = dataclasses.field(default_factory=list)
+    plausibility: dict = dataclasses.field(default_factory=dict)
 
     # -- evaluation -----------------------------------------------------------------------------
     @property
     def model(self) -> FittedModel:
         """The fitted BRDF: ``result.model(wi, wo)`` gives RGB ``f_r`` ``(..., 3)``."""
         return FittedModel(get_model(self.model_name), {k: np.asarray(v) for k, v in self.params.items()})
+
+    @property
+    def derived(self) -> dict:
+        """The quantities the model derives from the fitted parameters (``Model.derived``), name
+        → value (float, or list for RGB): ``f90`` of the standard models. ``{}`` for a model
+        without any, or one the registry does not know."""
+        from ..errors import UnknownNameError
+
+        try:
+            values = get_model(self.model_name).derived_values(self.params)
+        except (UnknownNameError, ValueError, TypeError):
+            return {}
+        return {k: float(v) if v.ndim == 0 else [float(a) for a in v.ravel()]
+                for k, v in values.items()}
+
+    @property
+    def plausible(self) -> bool | None:
+        """Whether every plausibility check passed (``None``: not assessed)."""
+        return self.plausibility.get("plausible") if self.plausibility else None
 
     # -- reporting ------------------------------------------------------------------------------
     def summary(self) -> str:
@@ -169,7 +198,12 @@ class FitResult:
             has_error = n in self.free and n not in self.at_bound and n not in self.not_identified
             err = f" ± {flat_se[n]:.3g}" if has_error else ""
             lines.append(f"  {n:>18} = {flat_x[n]:.6g}{err}{tag}")
+        for name, value in self.derived.items():
+            lines.append(f"  {name:>18} = {_short(value)} (derived from the parameters)")
         lines.append("  " + metrics_text(self.metrics))
+        from .plausibility import summary_lines
+
+        lines += summary_lines(self.plausibility)
         lines.append(f"  cost {self.cost:.6g}, optimality {self.optimality:.2g}"
                      + (f"; starts {len(self.starts)}" if len(self.starts) > 1 else ""))
         return "\n".join(lines + self._uncertainty_lines())
@@ -250,13 +284,32 @@ class FitResult:
             })
         return out
 
+    def derived_rows(self) -> list[dict]:
+        """:meth:`rows` of the :attr:`derived` quantities (``f90[0]`` ...): status ``derived``,
+        no standard error, no bounds."""
+        out = []
+        for name, value in self.derived.items():
+            flat = ([(name, value)] if not isinstance(value, list)
+                    else [(f"{name}[{c}]", v) for c, v in enumerate(value)])
+            out += [{"name": n, "value": float(v), "stderr": float("nan"),
+                     "lower": float("nan"), "upper": float("nan"), "status": "derived",
+                     "at_bound": False} for n, v in flat]
+        return out
+
     def to_dataframe(self):
-        """A ``pandas.DataFrame`` with one row per flat scalar parameter (columns of
-        :meth:`rows`, indexed by ``name``). ``pd.DataFrame(result.params)`` would repeat a
-        scalar across the three rows of an RGB parameter; this does not."""
+        """A ``pandas.DataFrame`` with one row per flat scalar parameter and derived quantity
+        (columns of :meth:`rows`, indexed by ``name``). ``pd.DataFrame(result.params)`` would
+        repeat a scalar across the three rows of an RGB parameter; this does not. The
+        plausibility verdict rides along in ``df.attrs``: ``plausible`` (bool, None when not
+        assessed) and ``implausible`` (the names of the failed checks)."""
         import pandas as pd
 
-        return pd.DataFrame(self.rows()).set_index("name")
+        from .plausibility import failed
+
+        df = pd.DataFrame(self.rows() + self.derived_rows()).set_index("name")
+        df.attrs["plausible"] = self.plausible
+        df.attrs["implausible"] = [c["name"] for c in failed(self.plausibility)]
+        return df
 
     @property
     def correlation(self) -> np.ndarray:
@@ -303,13 +356,14 @@ class FitResult:
         return report_html(self)
 
     def to_dict(self) -> dict:
-        """Plain Python types only (lists for arrays): the fields, and ``uncertainty``
-        (:meth:`uncertainty`: derived from them, for readers of the JSON; skipped when read
-        back)."""
+        """Plain Python types only (lists for arrays): the fields, ``uncertainty``
+        (:meth:`uncertainty`) and ``derived`` (:attr:`derived`): both derived from the fields,
+        for readers of the JSON, skipped when read back."""
         d = dataclasses.asdict(self)
         d["x"] = [float(v) for v in np.asarray(self.x, float)]
         d["cov"] = np.asarray(self.cov, float).tolist()
         d["uncertainty"] = self.uncertainty()
+        d["derived"] = self.derived  # for readers; recomputed from the parameters on reading
         return d
 
     def to_json(self, path=None, indent: int = 2) -> str:

@@ -245,6 +245,35 @@ def _provenance(v, where):
     return v
 
 
+def _check_entry(v, where):
+    if not isinstance(v, dict):
+        raise _Bad(f"{where} is {_kind(v)}, expected an object")
+    missing = [k for k in ("name", "passed", "value", "limit", "meaning") if k not in v]
+    if missing:
+        raise _Bad(f"{where} has no {', '.join(map(repr, missing))}")
+    passed = None if v["passed"] is None else _flag(v["passed"], f"{where}.passed")
+    return {"name": _text(v["name"], f"{where}.name"), "passed": passed,
+            "value": _real(v["value"], f"{where}.value"),
+            "limit": _real(v["limit"], f"{where}.limit"),
+            "meaning": _text(v["meaning"], f"{where}.meaning")}
+
+
+def _plausibility(v, where):
+    """The verdict record (:func:`brdffit.fitting.plausibility.verdict_record`); ``{}`` is a
+    result written before the verdict existed."""
+    if not isinstance(v, dict):
+        raise _Bad(f"{where} is {_kind(v)}, expected an object")
+    if not v:
+        return {}
+    if "plausible" not in v or "checks" not in v:
+        raise _Bad(f"{where} needs 'plausible' and 'checks'")
+    checks = v["checks"]
+    if not isinstance(checks, list):
+        raise _Bad(f"{where}.checks is {_kind(checks)}, expected a list")
+    return {"plausible": _flag(v["plausible"], f"{where}.plausible"),
+            "checks": [_check_entry(c, f"{where}.checks[{i}]") for i, c in enumerate(checks)]}
+
+
 #: Every field and its check, in :class:`FitResult`'s order (a test holds the keys to the
 #: dataclass's fields, so a new field cannot be left unread).
 FIELDS = {
@@ -255,10 +284,12 @@ FIELDS = {
     "solver": _text, "n_cells": _count, "n_total": _count, "init": _mapping(_value),
     "wall_time": _real, "timings": _mapping(_real), "table": _text, "covariance": _text,
     "optimality": _real, "provenance": _provenance, "not_identified": _names,
+    "plausibility": _plausibility,
 }
-#: Keys a result may carry beyond its fields (skipped): the posterior of ``--mcmc``, and
-#: ``uncertainty``, derived from the fields (:meth:`FitResult.uncertainty`).
-EXTRA = ("posterior", "uncertainty")
+#: Keys a result may carry beyond its fields (skipped): the posterior of ``--mcmc``;
+#: ``uncertainty``, derived from the fields (:meth:`FitResult.uncertainty`); ``derived``,
+#: recomputed from the parameters (:attr:`FitResult.derived`).
+EXTRA = ("posterior", "uncertainty", "derived")
 
 
 def fields(name, d, required) -> dict:

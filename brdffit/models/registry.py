@@ -151,6 +151,11 @@ class Model:
     (parameters a dict does not name keep the data-driven start); with a start that reproduces
     the simpler model exactly (``two-lobe-ggx`` with its blend at 0) the fit begins at the
     simpler model's cost.
+
+    ``derived`` (optional) gives the quantities a result reports beside the parameters, which
+    the model computes from them: ``derived(params) -> {name: value}`` (NumPy in, NumPy out;
+    the standard models' grazing reflectance ``f90`` from ``f0`` and ``grazing``). A derived
+    name is no parameter: it cannot be fixed, started or bounded, and :meth:`param` says so.
     """
 
     name: str
@@ -169,6 +174,9 @@ class Model:
         default=None, repr=False, compare=False
     )
     per_pass: PerPass | None = dataclasses.field(default=None, repr=False, compare=False)
+    derived: Callable[[Mapping], Mapping] | None = dataclasses.field(
+        default=None, repr=False, compare=False
+    )
 
     # -- parameter bookkeeping ---------------------------------------------------------------
     @property
@@ -184,7 +192,26 @@ class Model:
         for p in self.params:
             if p.name == name:
                 return p
-        raise UnknownNameError("parameter", name, self.names, owner=f"model {self.name!r}")
+        note = ""
+        if name in self.derived_values():
+            note = (f"{name!r} is derived from the parameters, not one of them: "
+                    f"{self.describe_derived(name)}")
+        raise UnknownNameError("parameter", name, self.names, owner=f"model {self.name!r}",
+                               note=note)
+
+    def derived_values(self, params: Mapping | None = None) -> dict[str, np.ndarray]:
+        """The :attr:`derived` quantities at ``params`` (defaults where missing), as NumPy
+        arrays; ``{}`` for a model without any."""
+        if self.derived is None:
+            return {}
+        full = {k: np.asarray(v, float) for k, v in self.complete(params).items()}
+        return {k: np.asarray(v, float) for k, v in self.derived(full).items()}
+
+    def describe_derived(self, name: str) -> str:
+        """One sentence on derived quantity ``name``: the docstring's first line of
+        :attr:`derived`, or a generic one."""
+        doc = (getattr(self.derived, "__doc__", "") or "").strip()
+        return " ".join(doc.split()) if doc else f"{name} is computed from the parameters."
 
     def defaults(self) -> dict[str, np.ndarray]:
         return {p.name: p.default_array() for p in self.params}

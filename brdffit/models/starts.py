@@ -115,7 +115,7 @@ def two_lobes_from_one(params) -> list[dict]:
     sharp lobe as many times narrower; each is the ``ggx`` fit exactly, and the solver then
     blends in the second lobe where the data ask for it."""
     alpha = float(params["alpha"])
-    same = {"diffuse": params["diffuse"], "f0": params["f0"], "f90": params["f90"]}
+    same = {"diffuse": params["diffuse"], "f0": params["f0"], "grazing": params["grazing"]}
     return [
         {**same, "alpha_1": alpha, "alpha_2": min(1.0, SECOND_LOBE_WIDTH * alpha), "mix": 0.0},
         {**same, "alpha_1": max(1e-3, alpha / SECOND_LOBE_WIDTH), "alpha_2": alpha, "mix": 1.0},

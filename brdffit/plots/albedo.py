@@ -27,7 +27,8 @@ The *measured* albedo of a table synthesized from ``ggx`` agrees with the model'
 to θi = 70° for α ≥ 0.02; towards grazing the table's resolution shows (θi = 89°: +5e-4 at
 α = 0.5, +8e-3 at α = 0.1, +8e-2 at α = 0.02): that is the data's limit, not the quadrature's.
 
-The azimuth of incidence is ``φi = 0`` (the x–z plane), which matters only for anisotropic models.
+The grid and the quadrature are :mod:`brdffit.models.albedo`'s (the plausibility check of
+every fit uses them too). The azimuth of incidence is ``φi = 0`` (the x–z plane), which matters only for anisotropic models.
 Measured albedo uses :func:`._eval.measured_lookup` (trilinear lookup in a table, nearest sample
 in a sample set); a node without data contributes nothing, and an angle where the cosine-weighted
 solid angle with data (the *coverage*) is below ``min_coverage`` is reported as NaN.
@@ -37,38 +38,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..models.albedo import half_vector_grid, quadrature as _quadrature
 from . import _style
 from ._eval import data_name, evaluate_model, measured_lookup
 
+__all__ = ["THETA_I_DEG", "directional_albedo", "figure_size", "half_vector_grid",
+           "measured_albedo", "model_albedo", "plot_albedo"]
+
 #: Default incidence angles (degrees).
 THETA_I_DEG = np.linspace(0.0, 89.0, 45)
-
-
-def half_vector_grid(n_u: int = 64, n_phi: int = 128, split: float = 0.3):
-    """Half vectors ``(n_u·n_phi, 3)`` and their solid-angle weights (see the module docstring)."""
-    x, w = np.polynomial.legendre.leggauss(n_u // 2)
-    u = np.concatenate([split * (x + 1) / 2, split + (1 - split) * (x + 1) / 2])
-    wu = np.concatenate([w * split / 2, w * (1 - split) / 2])
-    theta = 0.5 * np.pi * u**2
-    phi = (np.arange(n_phi) + 0.5) * (2 * np.pi / n_phi)
-    st = np.sin(theta)
-    h = np.stack(np.broadcast_arrays(
-        (st[:, None] * np.cos(phi)), (st[:, None] * np.sin(phi)), np.cos(theta)[:, None]), -1)
-    weight = (st * np.pi * u * wu)[:, None] * np.full(n_phi, 2 * np.pi / n_phi)
-    return h.reshape(-1, 3), weight.ravel()
-
-
-def _quadrature(theta_i_deg, n_u, n_phi):
-    """Per θi: ``wi``, ``wo`` ``(T, M, 3)``, weights ``(T, M)`` including ``cosθo · 4 (wi·h)``."""
-    h, w = half_vector_grid(n_u, n_phi)
-    t = np.radians(np.asarray(theta_i_deg, float))
-    wi = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1)[:, None, :]
-    wi_h = np.sum(wi * h, axis=-1)
-    wo = 2 * wi_h[..., None] * h - wi
-    ok = (wi_h > 0) & (wo[..., 2] > 0)
-    weight = np.where(ok, w * wo[..., 2] * 4 * wi_h, 0.0)
-    wo = np.where(ok[..., None], wo, np.array([0.0, 0.0, 1.0]))
-    return np.broadcast_to(wi, wo.shape), wo, weight
 
 
 def directional_albedo(f, theta_i_deg=THETA_I_DEG, *, n_u: int = 64, n_phi: int = 128):

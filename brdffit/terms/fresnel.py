@@ -36,6 +36,26 @@ def schlick(f0, cos_d, f90=1.0):
     return f0 + (f90 - f0) * m**5
 
 
+def f90_from_rise(f0, rise):
+    r"""The grazing reflectance ``F90`` of a rise ``t`` from ``F0`` towards 1, per channel:
+
+    .. math:: F_{90} = F_0 + (1 - F_0)\,t, \qquad 0 \le t \le 1
+
+    The parameterization of the generalized Schlick term (RTR eq. 9.18) by which a fit can
+    only return a physical surface: for every ``0 ≤ F0 ≤ 1`` and ``0 ≤ t ≤ 1`` it gives
+    ``F0 ≤ F90 ≤ 1`` in every channel, so the reflectance never falls towards grazing
+    incidence. ``t = 1`` is plain Schlick (eq. 9.16, what every renderer uses), ``t = 0`` a
+    reflectance without a grazing rise, ``F = F0`` at every angle. A scalar ``t`` keeps
+    :func:`schlick`'s channel ``c`` a function of ``F0[c]`` alone:
+    ``F = F0 + (1 − F0) t (1 − cos θd)^5``.
+
+    A free scalar ``F90`` on ``[0, 1]``, the form this replaces, lets a fit end with ``F90 < F0``
+    (a metal's reflectance that falls to 0 at grazing incidence), which no surface does and
+    no renderer shows.
+    """
+    return f0 + (1.0 - f0) * rise
+
+
 def schlick_weight(cos_d):
     r"""The Schlick shape ``(1 - cos)^5`` alone, clamped to ``[0, 1]`` (Burley 2012 §5.3, §5.5).
 
