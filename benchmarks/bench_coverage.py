@@ -45,8 +45,8 @@ from brdffit.posterior import ChainTooShortWarning, sample_posterior  # noqa: E4
 from data_formats import SampleSet  # noqa: E402
 
 NOMINAL = math.erf(1 / math.sqrt(2))  # 0.6827: ±1 σ of a Gaussian, and p16–p84
-TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.2, "f90": 1.0}
-FIXED = {"f90": 1.0}
+TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.2, "grazing": 1.0}
+FIXED = {"grazing": 1.0}
 
 
 def hemisphere(rng, n):
@@ -120,7 +120,7 @@ def main() -> int:
     a = ap.parse_args()
     hits, wall = run(a.seeds, a.cells, a.noise, a.steps, a.classical)
     lo, hi = band(a.seeds)
-    print(f"ggx, {a.cells} cells, {a.noise} noise, {a.seeds} seeds, f90 fixed; "
+    print(f"ggx, {a.cells} cells, {a.noise} noise, {a.seeds} seeds, grazing fixed (plain Schlick); "
           f"nominal {NOMINAL:.3f} (a correct interval stays in {lo:.2f}–{hi:.2f} per scalar); "
           f"{wall:.0f} s")
     names = list(next(iter(hits.values())))

@@ -9,8 +9,9 @@ that two checkouts (``PYTHONPATH=/path/to/other/checkout``) are counted by the s
 
 * ``f90<f0``: a generalized Schlick term whose grazing reflectance is below its normal one in
   some channel (``f90 < f0_c − 1e-6``); where a model has no free ``f90`` parameter, the
-  Fresnel term is read off the model: ``F(θd → 90°)`` and ``F(0)`` are not separable from the
-  BRDF, so this check counts only models that declare ``f0`` and ``f90``;
+  ``f90`` a model derives from its parameters (``Model.derived``, where it exists) counts too;
+  ``F(θd → 90°)`` and ``F(0)`` are not separable from the BRDF otherwise, so this check
+  counts only models that declare ``f0`` and ``f90`` one way or the other;
 * ``albedo>1``: the fitted model's directional albedo above 1 + 1e-3 at some incidence from 0°
   to 89° (:func:`brdffit.plots.albedo.model_albedo`, half-vector quadrature);
 * ``diffuse@1``: a diffuse albedo or base colour component on its upper bound 1;
@@ -69,6 +70,9 @@ def diffuse_floor(table) -> np.ndarray:
 def checks(model, params: dict, success: bool, floor: np.ndarray) -> dict:
     p = {k: np.asarray(v, float) for k, v in params.items()}
     out = dict.fromkeys(CHECKS, False)
+    derived = getattr(model, "derived", None)  # F90 = F0 + (1 - F0) grazing, where declared
+    if derived is not None and "f90" not in p:
+        p.update({k: np.asarray(v, float) for k, v in derived(p).items()})
     if "f90" in p and "f0" in p:
         out["f90<f0"] = bool(np.any(p["f90"] < p["f0"] - 1e-6))
     out["albedo>1"] = bool(np.nanmax(model_albedo(model, params, ALBEDO_ANGLES)) > 1 + 1e-3)

@@ -47,7 +47,7 @@ def _pairs(n, seed):
 
 def test_student_t_model_contains_ggx_and_tends_to_beckmann():
     wi, wo = _pairs(300, 1)
-    p = dict(diffuse=np.array([0.1, 0.2, 0.3]), f0=np.array([0.9, 0.5, 0.04]), alpha=0.17, f90=0.4)
+    p = dict(diffuse=np.array([0.1, 0.2, 0.3]), f0=np.array([0.9, 0.5, 0.04]), alpha=0.17, grazing=0.4)
     st = get_model("student-t")
     np.testing.assert_allclose(st(dict(p, gamma=2.0), wi, wo), get_model("ggx")(p, wi, wo), rtol=2e-6)
     np.testing.assert_allclose(st(dict(p, gamma=1e7), wi, wo), get_model("beckmann")(p, wi, wo),
@@ -76,7 +76,7 @@ CASES = {
     "low-microfacet": ({"diffuse": [0.05, 0.1, 0.2], "a": [300.0, 200.0, 100.0], "b": 5e4, "c": 0.8,
                         "eta": 2.5}, None),
     "student-t": ({"diffuse": [0.2, 0.1, 0.05], "f0": [0.6, 0.4, 0.3], "alpha": 0.08, "gamma": 1.8,
-                   "f90": 0.5}, None),
+                   "grazing": 0.5}, None),
     "sgd": ({"diffuse": [0.2, 0.1, 0.05], "ks": [2.0, 1.0, 3.0], "alpha": [0.004, 0.02, 0.05],
              "p": [0.4, 0.8, 1.1], "f0": [0.9, 0.5, 0.3], "f1": [0.2, 0.1, -0.1],
              "g_lambda": [3.0, 3.0, 3.0], "g_theta0": [0.5, 0.5, 0.5],

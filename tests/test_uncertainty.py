@@ -136,8 +136,8 @@ def test_the_posterior_runs_on_stated_cells_beside_least_squares_of_the_same_cel
 
 
 # -- coverage of the truth on noisy synthetic data ----------------------------------------------
-TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.2, "f90": 1.0}
-HELD = {"diffuse": [0.3, 0.35, 0.4], "f90": 1.0}
+TRUTH = {"diffuse": [0.3, 0.35, 0.4], "f0": [0.5, 0.4, 0.3], "alpha": 0.2, "grazing": 1.0}
+HELD = {"diffuse": [0.3, 0.35, 0.4], "grazing": 1.0}
 SEEDS = 40
 CELLS = 300
 

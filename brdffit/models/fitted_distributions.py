@@ -38,7 +38,7 @@ writes; the bounds keep ``η ≥ 1``).
   appear as this product (a fit of both would be singular).
 
 * ``student-t``: the house's single-lobe microfacet model (RTR eq. 9.34: height-correlated
-  Smith ``G2``, generalized Schlick ``F0``, ``F90``, as ``ggx``) with the Student-t NDF
+  Smith ``G2``, generalized Schlick ``F0``, ``F90 = F0 + (1 − F0) t``, as ``ggx``) with the Student-t NDF
   (:class:`~brdffit.terms.ndf.StudentT`): ``γ = 2`` is ``ggx``, ``γ → ∞`` is ``beckmann``. No
   published fits of MERL exist for it; bbm's ``Ribardiere`` differs (separable ``G`` with the
   paper's approximate ``Λ``, the Cook–Torrance Fresnel).
@@ -55,14 +55,14 @@ from data_formats.published import PublishedFit
 
 from ..terms._math import cos_theta, dot, half_vector, safe_div, safe_sqrt
 from ..terms.diffuse import lambert
-from ..terms.fresnel import dielectric, ior_from_f0, schlick
+from ..terms.fresnel import dielectric, f90_from_rise, ior_from_f0, schlick
 from ..terms.masking import G2_vgroove
 from ..terms.microfacet import microfacet_specular
 from ..terms.ndf import ABC, SGD, StudentT, bagher_g1
 from ..terms.ndf.sgd import theta_of
 from .published import PublishedForm, register_published
 from .registry import Model, Param, PerPass, register
-from .standard import ALPHA, DIFFUSE, F0, F90
+from .standard import ALPHA, DIFFUSE, F0, GRAZING, grazing_f90
 
 # --- Löw 2012 ------------------------------------------------------------------------------
 
@@ -249,7 +249,7 @@ STUDENT_GAMMA = Param("gamma", (), 1.6, 1e3, 2.0,
 
 def _student_t_lobe(ndf, p, wi, wo):
     return lambert(p["diffuse"], wi, wo) + microfacet_specular(
-        ndf, partial(schlick, p["f0"], f90=p["f90"]), wi, wo)
+        ndf, partial(schlick, p["f0"], f90=f90_from_rise(p["f0"], p["grazing"])), wi, wo)
 
 
 def _student_t_table(p):
@@ -264,8 +264,10 @@ STUDENT_T_MODEL = register(
     Model(
         name="student-t",
         description=("Lambert + Student-t (STD) specular, free tail γ (2 = GGX, ∞ = Beckmann), "
-                     "numerical Smith Λ, height-correlated G2, generalized Schlick F (F0, F90)"),
-        params=(DIFFUSE, F0, ALPHA, STUDENT_GAMMA, F90),
+                     "numerical Smith Λ, height-correlated G2, generalized Schlick F (F0, "
+                     "F90 = F0 + (1 - F0) grazing)"),
+        params=(DIFFUSE, F0, ALPHA, STUDENT_GAMMA, GRAZING),
+        derived=grazing_f90,
         fn=lambda p, wi, wo: _student_t_lobe(StudentT(p["alpha"], p["gamma"]), p, wi, wo),
         reference="Ribardière et al. 2017 eqs. 10, 13-15; RTR eqs. 9.34, 9.23/9.24, 9.31, 9.18",
         per_pass=PerPass(build=_student_t_table, apply=_student_t_with_table,
