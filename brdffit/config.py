@@ -13,7 +13,7 @@ command-line flags), a later layer winning key by key. Layout (every key optiona
     multistart = 0                # extra random starts, best kept
 
     covariance = "sandwich"       # or "gn"
-    weighting = "angles"          # or "samples": how samples count against each other
+    weighting = "angles"          # or "samples", "solid-angle": how samples count
 
     [solver]                      # solver and its tolerances
     name = "lm"
@@ -103,7 +103,7 @@ def _table_option(flag, help, metavar="NAME=VALUE"):
 #: The registered losses' and solvers' names, in registry order: :data:`brdffit.fitting.LOSSES`
 #: and :data:`brdffit.fitting.SOLVERS` are built on them, so that the ``--loss`` and ``--solver``
 #: help lists the registry without importing JAX.
-LOSS_NAMES = ("linear", "cosine", "log", "relative")
+LOSS_NAMES = ("linear", "cosine", "log", "relative", "cosine-in")
 SOLVER_NAMES = ("lm", "gauss-newton", "dogleg")
 _LOSS, _SOLVER = "log", "lm"  # the defaults (brdffit.fitting's DEFAULT_LOSS, DEFAULT_SOLVER)
 
@@ -243,10 +243,11 @@ class FitOptions:
         kind=str, choices=("sandwich", "gn"), want='"sandwich" or "gn"', default="sandwich",
         flag="--covariance", help="standard errors: sandwich (robust, default) or gn (classical)")
     weighting: str | None = _option(
-        kind=str, choices=("angles", "samples"), want='"angles" or "samples"',
-        default="angles", flag="--weighting",
+        kind=str, choices=("angles", "samples", "solid-angle"),
+        want='"angles", "samples" or "solid-angle"', default="angles", flag="--weighting",
         help="how samples count: by the share of the angles each stands for (default; undoes "
-        "the MERL θh warp) or once each")
+        "the MERL θh warp), once each, or by the solid angle dωi dωo each stands for (the "
+        "literature's measure)")
     description: str = ""
     sources: tuple[str, ...] = ()
 

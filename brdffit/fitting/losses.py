@@ -17,7 +17,16 @@ linear     ``ρ``                                 plain least squares; dominated
 cosine     ``ρ cosθi cosθo``                     radiance-like weighting, tames grazing cells
 log        ``log(1 + ρ cosθi)``                  the default; Löw et al. 2012 style
 relative   ``ρ``, weight ``1/max(ρ, floor)``     every cell counts by its relative error
+cosine-in  ``ρ cosθi``                           Ngan et al. 2005's and Löw et al. 2012's E1
 ========== ==================================== ===============================================
+
+``cosine-in`` is the residual of the cosine-weighted L2 errors of the MERL-fitting studies
+(Ngan, Durand & Matusik 2005; Löw et al. 2012's E1), ``(ρ̂ - ρ) cosθi``, as the BSDF benchmark
+project transcribes them (``bsdfbenchmark/bbm``, ``include/loss/cosine_weighted_l2.h``:
+``nganL2_error`` and ``lowL2_error``); ``log`` is Löw et al. 2012's E2 residual
+(``include/loss/cosine_weighted_log.h``, ``lowLog_error``). Those studies weight each sample by
+its solid angle (bbm's ``sinθi sinθo`` sample weights): the option ``weighting="solid-angle"``
+(:mod:`brdffit.fitting.data`), which the presets of their protocols set.
 
 A robust variant of any loss (``huber=δ``) replaces ``r`` beyond ``|r| > δ`` by
 ``sign(r) sqrt(2δ|r| - δ²)``, so that ``r²/2`` becomes Huber's ``δ|r| - δ²/2`` there.
@@ -65,6 +74,10 @@ def _identity(f, cos_i, cos_o):
 
 def _cosine(f, cos_i, cos_o):
     return f * cos_i * cos_o
+
+
+def _cosine_in(f, cos_i, cos_o):
+    return f * cos_i
 
 
 def _log(f, cos_i, cos_o):
@@ -136,6 +149,7 @@ LOSSES: dict[str, Loss] = {
         (_cosine, _unit_weight, "(ρ̂ - ρ) cosθi cosθo"),
         (_log, _unit_weight, "log(1 + ρ̂ cosθi) - log(1 + ρ cosθi)"),
         (_identity, _relative_weight, "(ρ̂ - ρ) / max(ρ, 1e-3)"),
+        (_cosine_in, _unit_weight, "(ρ̂ - ρ) cosθi (Ngan 2005, Löw 2012 E1)"),
     ), strict=True)
 }
 

@@ -115,7 +115,9 @@ class Settings:
         weighting: ``"angles"`` (default): each squared residual counts by the share of the
             angle domain its sample stands for (``SampleSet.weight``; on a MERL table the
             ``θh`` width of its cell, which undoes the format's warp towards the peak);
-            ``"samples"``: every sample counts once. See :mod:`brdffit.fitting.data`.
+            ``"samples"``: every sample counts once; ``"solid-angle"``: by the solid angle
+            ``dωi dωo`` it stands for (the MERL-fitting studies' measure). See
+            :mod:`brdffit.fitting.data`.
     """
 
     loss: Loss
