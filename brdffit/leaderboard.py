@@ -330,10 +330,28 @@ def compare(table, models=(), published=None, *, options=None, rank_by: str = DE
     pub = published_candidates(published, name) if published is not None else []
     cells = scoring_cells(data)
     fits = _fit_candidates(data, parsed, options, progress)
-    everyone = fits + pub
-    for c in everyone:
+    return board(data, fits + pub, rank_by, cells)
+
+
+def board(data, candidates, rank_by: str = DEFAULT_RANK_BY, cells: Cells | None = None
+          ) -> Leaderboard:
+    """The :class:`Leaderboard` of ``candidates`` (:class:`Candidate` objects, or results:
+    a :class:`brdffit.FitResult` becomes a ``"fit"`` labelled by its model, a
+    :class:`~brdffit.published.PublishedResult` a ``"published"`` one) on ``data``: each scored
+    on ``cells`` (default :func:`scoring_cells` of ``data``) and ranked by ``rank_by``. No fit is
+    run: this ranks results made elsewhere (a batch's)."""
+    from .published import PublishedResult
+
+    check_rank_by(rank_by)
+    cells = scoring_cells(data) if cells is None else cells
+    out = []
+    for c in candidates:
+        if not isinstance(c, Candidate):
+            c = (Candidate(c.source, "published", c) if isinstance(c, PublishedResult)
+                 else Candidate(c.model_name, "fit", c))
         c.scores = score(cells, c.result.model_name, c.result.params)
-    return Leaderboard(name, rank(everyone, rank_by), rank_by, len(cells))
+        out.append(c)
+    return Leaderboard(getattr(data, "name", "") or "", rank(out, rank_by), rank_by, len(cells))
 
 
 # -- the HTML report --------------------------------------------------------------------------
@@ -436,5 +454,5 @@ def report_html(board: Leaderboard, data) -> str:
     return "".join(parts)
 
 
-__all__ = ["DEFAULT_RANK_BY", "Candidate", "Cells", "Leaderboard", "compare", "parse_models",
+__all__ = ["DEFAULT_RANK_BY", "Candidate", "Cells", "Leaderboard", "board", "compare", "parse_models",
            "published_candidates", "rank", "report_html", "score", "scoring_cells"]
