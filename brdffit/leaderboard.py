@@ -367,8 +367,7 @@ def _png(fig, dpi: int = REPORT_DPI) -> str:
 def spheres_figure(board: Leaderboard, data, size: int = 160):
     """One figure: the lit sphere of the data and of every candidate, side by side, under one
     tone mapping (the data's), each titled with its label and rank metric."""
-    from .plots import log_levels, log_tonemap, measured_lookup, render_sphere
-    from .plots._style import new_figure
+    from .plots import InlineFigure, log_levels, log_tonemap, measured_lookup, render_sphere
     from .plots.sphere import DEFAULT_LIGHT, sphere_directions
     from .models.evaluate import evaluate_model
 
@@ -383,7 +382,7 @@ def spheres_figure(board: Leaderboard, data, size: int = 160):
                        img))
     cols = min(len(images), 6)
     rows = -(-len(images) // cols)
-    fig = new_figure(2.2 * cols, 2.5 * rows)
+    fig = InlineFigure(figsize=(2.2 * cols, 2.5 * rows), dpi=REPORT_DPI, layout="constrained")
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
     for ax, (label, img) in zip(axes, images):
         ax.imshow(log_tonemap(img, *levels), extent=(-1, 1, -1, 1))

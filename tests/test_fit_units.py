@@ -53,6 +53,7 @@ NUMPY_LOSSES = {
     "cosine": lambda p, d, ci, co: (p - d) * ci * co,
     "log": lambda p, d, ci, co: np.log1p(p * ci) - np.log1p(d * ci),
     "relative": lambda p, d, ci, co: (p - d) / np.maximum(np.abs(d), RELATIVE_FLOOR),
+    "cosine-in": lambda p, d, ci, co: (p - d) * ci,
 }
 
 

@@ -99,6 +99,9 @@ def run(args) -> int:
         print(board.to_json() if args.json else board.text())
         sys.stdout.flush()  # a failed stdout publishes nothing
         outputs.publish()
+    if args.published and board.best("published") is None:
+        print(f"brdffit compare: warning: {args.published} holds no published fit of "
+              f"{board.table!r} (matched by the table's name)", file=sys.stderr)
     failed = [c.label for c in board.candidates if c.kind == "fit" and not c.converged]
     if failed:
         print(f"brdffit compare: warning: {', '.join(failed)} did not converge; they are on the "
