@@ -203,7 +203,7 @@ def _options_for(options, preset):
     from .config import FitOptions, load_config
     from .fitting import fit_options
 
-    base = options if isinstance(options, FitOptions) else fit_options(options)
+    base = options if isinstance(options, FitOptions) else FitOptions(**fit_options(options))
     return base if preset is None else base.merged(load_config(preset))
 
 
@@ -318,13 +318,9 @@ def compare(table, models=(), published=None, *, options=None, rank_by: str = DE
 
     check_rank_by(rank_by)
     parsed = parse_models(models) if (models or published is None) else []
-    if not isinstance(options, (type(None), dict)) and not hasattr(options, "merged"):
-        raise ConfigError(f"options must be a FitOptions or a mapping, got "
-                          f"{type(options).__name__}")
     fit_options(options)  # checked before the table is read
     for _, _, preset in parsed:
-        if preset is not None:
-            _options_for(options, preset)
+        _options_for(options, preset)
     data, _path = load(table)
     name = getattr(data, "name", "") or ""
     pub = published_candidates(published, name) if published is not None else []

@@ -236,6 +236,17 @@ def test_scores_are_the_metrics_of_the_candidates_values(shiny, test_form, fits_
     assert c.scores == pytest.approx(want, rel=1e-12) and board.n_cells == int(ok.sum())
 
 
+def test_a_model_under_its_own_preset_over_the_common_options(shiny):
+    board = brdffit.compare(shiny, "ggx@low2012-e2", options={"cutoff": 80.0})
+    (c,) = board.candidates
+    options = c.result.provenance["options"]
+    assert (options["loss"], options["weighting"], options["cutoff"]) == (
+        "log", "solid-angle", 80.0)
+    assert c.label == "ggx@low2012-e2" and c.source == "fit (log, solid-angle, θ ≤ 80°)"
+    with pytest.raises(TypeError, match="cutof"):
+        brdffit.compare(shiny, "ggx", options={"cutof": 80})
+
+
 def test_compare_refuses_bad_input_before_any_fit(shiny, tmp_path):
     with pytest.raises(brdffit.UnknownNameError, match="ggz"):
         brdffit.compare(shiny, "ggz")
