@@ -51,7 +51,8 @@ REPORT_DPI = 72
 @dataclasses.dataclass
 class Candidate:
     """One row of a leaderboard: ``label`` (``"ggx"``, ``"beckmann@low2012-e2"``,
-    ``"published: Löw 2012 E2"``), ``kind`` (``"fit"`` or ``"published"``), the ``result``
+    ``"published: Löw 2012 E2 (low-cooktorrance)"``), ``kind`` (``"fit"`` or
+    ``"published"``), the ``result``
     (a :class:`brdffit.FitResult`, or a :class:`brdffit.published.PublishedResult`) and its
     ``scores`` (metric → value)."""
 
@@ -226,7 +227,13 @@ def published_candidates(published, material: str) -> list[Candidate]:
     a folder without a fit of that material gives none."""
     from .published import load_published
 
-    return [Candidate(r.source, "published", r) for r in load_published(published, material)]
+    return [published_candidate(r) for r in load_published(published, material)]
+
+
+def published_candidate(result) -> Candidate:
+    """A :class:`~brdffit.published.PublishedResult` as a candidate, labelled by its source and
+    model (``"published: Ngan 2005 (ngan-cooktorrance)"``: a study publishes several models)."""
+    return Candidate(f"{result.source} ({result.model_name})", "published", result)
 
 
 # -- scoring ----------------------------------------------------------------------------------
@@ -343,7 +350,7 @@ def board(data, candidates, rank_by: str = DEFAULT_RANK_BY, cells: Cells | None 
     out = []
     for c in candidates:
         if not isinstance(c, Candidate):
-            c = (Candidate(c.source, "published", c) if isinstance(c, PublishedResult)
+            c = (published_candidate(c) if isinstance(c, PublishedResult)
                  else Candidate(c.model_name, "fit", c))
         c.scores = score(cells, c.result.model_name, c.result.params)
         out.append(c)

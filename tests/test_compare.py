@@ -207,7 +207,7 @@ def test_a_table_made_from_one_model_ranks_that_model_first(shiny, fits_dir, tes
         board = brdffit.compare(shiny, "beckmann,ggx,blinn-phong", published=fits_dir)
     labels = [c.label for c in board.candidates]
     assert labels[0] == "ggx" and set(labels) == {"ggx", "beckmann", "blinn-phong",
-                                                  "published: Test 2099 E2"}
+                                                  "published: Test 2099 E2 (ggx)"}
     best = board.candidates[0].scores
     assert best["log_rms_sa"] < 1e-9 and best["ngan_rms_80"] < 1e-9
     df = board.frame
