@@ -144,10 +144,24 @@ def test_cosine_in_loss_and_solid_angle_weighting_recover_the_truth(shiny):
     assert r.provenance["options"]["weighting"] == "solid-angle"
 
 
+def test_the_default_fit_uses_the_cells_within_80_degrees(shiny):
+    """The default cells (``brdffit.config.DEFAULT_CUTOFF``): θi, θo ≤ 80°, where a fit is best
+    in the metrics over those angles (``benchmarks/bench_compare.py``); ``cutoff=None`` given
+    explicitly, or 90, keeps every cell above the horizon."""
+    from brdffit.io import read_path
+
+    s = read_path(shiny).to_samples()
+    inside = s.valid & (np.minimum(s.wi[:, 2], s.wo[:, 2]) >= np.cos(np.radians(80)))
+    r = brdffit.fit(shiny, "ggx")
+    assert r.provenance["options"]["cutoff"] == 80.0 and r.n_cells == int(inside.sum())
+    assert brdffit.fit(shiny, "ggx", cutoff=None).n_cells == int(s.valid.sum())
+    assert brdffit.fit(shiny, "ggx", cutoff=90).n_cells == int(s.valid.sum())
+
+
 @pytest.mark.parametrize("preset, loss, weighting, cutoff", [
     ("ngan2005", "cosine-in", "solid-angle", 80.0),
-    ("low2012-e1", "cosine-in", "solid-angle", None),
-    ("low2012-e2", "log", "solid-angle", None),
+    ("low2012-e1", "cosine-in", "solid-angle", 90.0),
+    ("low2012-e2", "log", "solid-angle", 90.0),
     ("bagher2012", "cosine-in", "solid-angle", 80.0),
 ])
 def test_protocol_presets_say_what_they_reproduce(preset, loss, weighting, cutoff):
@@ -237,12 +251,13 @@ def test_scores_are_the_metrics_of_the_candidates_values(shiny, test_form, fits_
 
 
 def test_a_model_under_its_own_preset_over_the_common_options(shiny):
-    board = brdffit.compare(shiny, "ggx@low2012-e2", options={"cutoff": 80.0})
+    board = brdffit.compare(shiny, "ggx@low2012-e2", options={"cutoff": 70.0, "seed": 3})
     (c,) = board.candidates
     options = c.result.provenance["options"]
     assert (options["loss"], options["weighting"], options["cutoff"]) == (
-        "log", "solid-angle", 80.0)
-    assert c.label == "ggx@low2012-e2" and c.source == "fit (log, solid-angle, θ ≤ 80°)"
+        "log", "solid-angle", 90.0)  # the preset's cutoff over the common options'
+    assert options["seed"] == 3  # and the common options where the preset is silent
+    assert c.label == "ggx@low2012-e2" and c.source == "fit (log, solid-angle, θ ≤ 90°)"
     with pytest.raises(TypeError, match="cutof"):
         brdffit.compare(shiny, "ggx", options={"cutof": 80})
 

@@ -31,7 +31,8 @@ Selection happens in two stages, so that every table of one layout compiles once
   et al. 2005, Löw et al. 2012); the peak's rows and the grazing ``θd`` then count little.
 
 Burley 2012 §3.1/§4.7: data past about 75–80° is extrapolated in the MERL set; ``cutoff=80``
-drops it. The default keeps everything (the caller decides).
+drops it. :func:`select` keeps everything unless given a ``cutoff``; a fit's default is
+:data:`brdffit.config.DEFAULT_CUTOFF` (80°), the caller's options decide.
 
 Memory: a fit holds about :data:`FIT_BYTES_PER_CELL` bytes per selected cell beyond its input
 (host gathers, the device arrays, the solver's buffers) and :data:`FIT_FIXED_BYTES` for the

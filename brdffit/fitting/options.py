@@ -87,7 +87,9 @@ class Settings:
             ``FitResult``.
         fixed: name → value of scalars held fixed (``"f0"`` or one component ``"f0[1]"``).
         bounds: name → ``(lo, hi)`` overriding the declared bounds.
-        cutoff: drop cells with ``θi`` or ``θo`` above this many degrees (Burley 2012 §4.7).
+        cutoff: drop cells with ``θi`` or ``θo`` above this many degrees (Burley 2012 §4.7;
+            default :data:`brdffit.config.DEFAULT_CUTOFF`, 80°; ``None`` given explicitly or
+            90 keeps every cell above the horizon).
         subsample: a cell count, a fraction, or a :class:`~brdffit.fitting.data.Subsample`.
         seed: for the subsample and the multi-start perturbations.
         multistart: number of extra perturbed starts; the lowest cost wins.
