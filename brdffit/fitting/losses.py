@@ -50,8 +50,11 @@ two things moved the ``beckmann`` fits: the Fresnel term's grazing value (a free
 against each other (each MERL cell weighted by its width in ``θh``, which undoes the
 format's warp towards the peak: 78% → 91%, the default ``weighting="angles"`` of
 :mod:`brdffit.fitting.data`). The loss itself did not: with ``F90`` free, an 80° cutoff
-lowers that figure (to 70%: the sharp lobes end too narrow), and the ``cosine`` loss and
-Ngan 2005's linear ``ρ cosθi`` residual make sharp lobes 4–5× too narrow.
+lowers that figure (measured on every cell's weighting before it became the default: to 70%;
+on 12 realistic materials with the default cells: 10 within the factor against 11 on every
+cell, the broad lobes of paints and plastics end narrower, the sharp ones nearer the
+published values), and the ``cosine`` loss and Ngan 2005's linear ``ρ cosθi`` residual make
+sharp lobes 4–5× too narrow.
 """
 
 from __future__ import annotations
