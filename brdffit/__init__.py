@@ -37,6 +37,9 @@ _LAZY = {
     "fit_report": ".fitting",
     "get_loss": ".fitting",
     "fit_many": ".batch",
+    "compare": ".leaderboard",
+    "Leaderboard": ".leaderboard",
+    "load_published": ".published",
     "PosteriorResult": ".posterior",
     "sample_posterior": ".posterior",
 }

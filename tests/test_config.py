@@ -47,7 +47,8 @@ def test_every_preset_loads_and_names_valid_loss_and_solver(path):
 
 def test_ngan2005_protocol():
     opts = load_config(CONFIGS / "ngan2005.toml")
-    assert (opts.loss, opts.cutoff, opts.model) == ("cosine", 80.0, None)
+    assert (opts.loss, opts.cutoff, opts.model, opts.weighting) == (
+        "cosine-in", 80.0, None, "solid-angle")
     text = (CONFIGS / "ngan2005.toml").read_text()
     assert "does not reproduce" in text and "80°" in text
 
@@ -106,7 +107,7 @@ def test_flags_override_preset_and_free_fixed_parameters():
         ("cutoff = 95", "'cutoff' must be degrees in (0, 90], got 95"),
         ("subsample = 1.5", "'subsample' must be a sample count in [1, 16777216] or a fraction in (0, 1], got 1.5"),
         ("seed = true", "'seed' must be an integer in [0, 2^32 - 1], got bool True"),
-        ('weighting = "angle"', """'weighting' must be "angles" or "samples", got 'angle'"""),
+        ('weighting = "angle"', """'weighting' must be "angles", "samples" or "solid-angle", got 'angle'"""),
         ("model = 3", "'model' must be a model name, got int 3"),
         ("init = 3", "'init' must be a table ([init]), got 3"),
         ("[init]\nalpha = 'x'", "[init] 'alpha' must be a finite number or a list of 3 finite numbers"),

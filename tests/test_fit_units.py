@@ -53,6 +53,7 @@ NUMPY_LOSSES = {
     "cosine": lambda p, d, ci, co: (p - d) * ci * co,
     "log": lambda p, d, ci, co: np.log1p(p * ci) - np.log1p(d * ci),
     "relative": lambda p, d, ci, co: (p - d) / np.maximum(np.abs(d), RELATIVE_FLOOR),
+    "cosine-in": lambda p, d, ci, co: (p - d) * ci,
 }
 
 
@@ -574,7 +575,7 @@ def test_select_weights_each_residual_by_its_samples_share_of_the_angles():
     with pytest.raises(ConfigError, match="every usable sample has weight 0"):
         select(dataclasses.replace(s, weight=np.zeros(3000)), loss)
     with pytest.raises(UnknownNameError, match="angles"):
-        brdffit.fit(weighted, "ggx", weighting="solid-angle")
+        brdffit.fit(weighted, "ggx", weighting="solid")
 
 
 def test_select_option_errors():
@@ -592,7 +593,7 @@ def test_too_few_valid_cells_is_a_clear_error():
     s = ggx_samples(2000)
     s.valid[10:] = False
     with pytest.raises(FitError, match=r"10 usable valid cells out of 2000.*needs at least 24"):
-        brdffit.fit(s, "ggx")
+        brdffit.fit(s, "ggx", cutoff=90)  # every cell above the horizon
     s = ggx_samples(2000)
     s.rgb[:] = np.nan
     with pytest.raises(FitError, match="NaNs"):
@@ -636,15 +637,19 @@ def test_result_fields_progress_and_fixed(small_fit):
     assert steps[-1] == pytest.approx(res.cost, rel=1e-6)
     scan = [i["cost"] for e, i in events if e == "scan-step"]  # the start scan (same cells here)
     assert scan[0] > steps[-1] and min(scan) >= steps[-1] * (1 - 1e-9)
-    pred = np.asarray(res.model(s.wi, s.wo))
+    # the default cells: θi, θo ≤ 80° (brdffit.config.DEFAULT_CUTOFF)
+    used = np.minimum(s.wi[:, 2], s.wo[:, 2]) >= np.cos(np.radians(80))
+    assert res.n_cells == int(used.sum()) < len(s.wi)
+    wi, wo, rgb = s.wi[used], s.wo[used], s.rgb[used]
+    pred = np.asarray(res.model(wi, wo))
     np.testing.assert_allclose(res.metrics["rel_error"],
-                               np.mean(np.abs(pred - s.rgb) / np.maximum(s.rgb, 1e-3)), rtol=1e-9)
+                               np.mean(np.abs(pred - rgb) / np.maximum(rgb, 1e-3)), rtol=1e-9)
     # the error figures come from the solver's own last pass: they belong to the reported point
-    ci = s.wi[:, 2:3]
-    dlog = np.log1p(pred * ci) - np.log1p(s.rgb * ci)
+    ci = wi[:, 2:3]
+    dlog = np.log1p(pred * ci) - np.log1p(rgb * ci)
     assert res.cost == pytest.approx(0.5 * np.sum(dlog**2), rel=1e-9)
     assert res.metrics["rmse_log"] == pytest.approx(np.sqrt(np.mean(dlog**2)), rel=1e-9)
-    dcos = (pred - s.rgb) * ci * s.wo[:, 2:3]
+    dcos = (pred - rgb) * ci * wo[:, 2:3]
     assert res.metrics["rmse_cosine"] == pytest.approx(np.sqrt(np.mean(dcos**2)), rel=1e-9)
     assert "alpha" in res.summary() and "(fixed)" in res.summary()
 

@@ -81,7 +81,7 @@ def test_corrupt_values_are_masked_with_a_count_and_the_steps_stay_bounded():
     s.rgb[7, 0] = np.nan
     events = []
     with pytest.warns(MaskedValuesWarning) as caught:
-        res = brdffit.fit(s, "ggx", max_steps=5, throw=False,
+        res = brdffit.fit(s, "ggx", max_steps=5, throw=False, cutoff=None,  # every cell
                           progress=lambda event, info: events.append(event))
     assert len(caught) == 1
     assert ("masked 4 cells marked valid whose values cannot be measurements (1 not finite, "

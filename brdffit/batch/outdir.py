@@ -1,7 +1,8 @@
 """The output folder of a batch: checked before any work, written without following links.
 
 Layout: ``OUTDIR/<material>/<model>.json``, ``<model>.meta.json`` and figures (see
-:mod:`brdffit.batch.jobs`); ``OUTDIR/results.parquet`` and ``results.csv``.
+:mod:`brdffit.batch.jobs`); ``OUTDIR/results.parquet`` and ``results.csv``; with
+``compare``, ``OUTDIR/leaderboard.parquet`` and ``leaderboard.csv``.
 
 * **OUTDIR** is the user's own path: it may be, or pass through, a symbolic link. It is created
   if needed and proven writable (a file created in it and removed) before any work:
@@ -31,7 +32,7 @@ from pathlib import Path
 from ..errors import BrdffitError
 
 #: Files a batch writes at the top of OUTDIR.
-TABLE_FILES = ("results.parquet", "results.csv")
+TABLE_FILES = ("results.parquet", "results.csv", "leaderboard.parquet", "leaderboard.csv")
 NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 _DIRECTORY = getattr(os, "O_DIRECTORY", 0)
 CLOEXEC = getattr(os, "O_CLOEXEC", 0)

@@ -1,5 +1,5 @@
-"""The ``brdffit`` command line: ``fit``, ``batch``, ``info``, ``synth``, ``plot``, ``models``,
-``demo``, ``export``, ``render``.
+"""The ``brdffit`` command line: ``fit``, ``compare``, ``batch``, ``info``, ``synth``, ``plot``,
+``models``, ``demo``, ``export``, ``render``.
 
 One module per command (``add_parser`` + ``run``); this module builds the parser and turns user
 mistakes into one line on stderr. Exit codes: 0 success; 1 a fit that did not converge (its
@@ -31,11 +31,11 @@ import traceback
 import warnings
 from typing import NoReturn
 
-from . import batch, catalog, demo, export, fitting, info, plotting, render, synth
+from . import batch, catalog, compare, demo, export, fitting, info, plotting, render, synth
 
 __all__ = ["main", "run", "build_parser"]
 
-COMMANDS = (fitting, batch, info, synth, plotting, catalog, demo, export, render)
+COMMANDS = (fitting, compare, batch, info, synth, plotting, catalog, demo, export, render)
 EXIT_USAGE = 2
 
 

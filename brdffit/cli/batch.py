@@ -17,6 +17,11 @@ batch table). Every such check is made before any fit.
 OUTDIR: a batch merges its rows into it (a row of the same material and model is replaced, the
 others are kept; the ``wrote`` line says how many), see :mod:`brdffit.batch.table`.
 
+``--compare`` (with ``--published PATH``, the published fits) then ranks, per material, its
+fits and its published fits on the same cells in the literature's metrics, prints the best of
+each and writes ``OUTDIR/leaderboard.parquet`` and ``.csv`` (:mod:`brdffit.batch.compare`);
+``--published`` is read, and refused when malformed, before any fit.
+
 The local cluster is closed to other users (TLS with credentials of its own, loopback only) and
 serves no HTTP; ``--dashboard [ADDR]`` starts the scheduler's dashboard (default
 ``127.0.0.1:8787``, loopback only) and prints its link on stderr (another port, said so, when
@@ -62,6 +67,19 @@ def add_parser(sub, parents) -> None:
     p.add_argument("--plot", action="store_true",
                    help="also write each fit's figures (OUTDIR/<material>/<model>-slice.png, ...)")
     p.add_argument("--force", action="store_true", help="refit even where a result exists")
+    from ..leaderboard import DEFAULT_RANK_BY
+    from ..metrics import LITERATURE_METRICS
+
+    p.add_argument("--compare", action="store_true",
+                   help="also rank, per material, its fits and its published fits (--published) "
+                   "on the same cells in the literature's metrics: OUTDIR/leaderboard.parquet "
+                   "and .csv (see `brdffit compare`)")
+    p.add_argument("--published", metavar="PATH",
+                   help="with --compare: a published .fit file or a folder of them; each "
+                   "material's fits (matched by its name) join its leaderboard")
+    p.add_argument("--rank-by", default=DEFAULT_RANK_BY, choices=list(LITERATURE_METRICS),
+                   metavar="METRIC", help=f"with --compare: the metric to rank by (default "
+                   f"{DEFAULT_RANK_BY})")
     p.add_argument("--workers", type=int, metavar="N",
                    help="local worker processes (default: one per CPU core)")
     p.add_argument("--scheduler", metavar="ADDRESS",
@@ -117,9 +135,25 @@ def _check_dashboard(args) -> None:
                          "--dashboard=HOST:PORT, or put --dashboard after the inputs)")
 
 
+def _check_compare(args) -> None:
+    """``--published`` needs ``--compare``; its files are read (and refused when malformed)
+    before any fit."""
+    if args.published and not args.compare:
+        raise UsageError("--published ranks published fits in the leaderboard: add --compare")
+    if args.published:
+        from ..published import load_published
+
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # said again after the batch
+            load_published(args.published)
+
+
 def run(args) -> int:
     from ..batch import runner, table
 
+    _check_compare(args)
     job_list = jobs_from(args)
     dashboard = (args.dashboard or runner.DEFAULT_DASHBOARD) if args.dashboard is not False \
         else None
@@ -127,14 +161,32 @@ def run(args) -> int:
     try:
         out = runner.run_batch(job_list, outdir=args.outdir, force=args.force, plot=args.plot,
                                client=None, workers=args.workers, scheduler=args.scheduler,
-                               dashboard=dashboard, progress=False if args.quiet else None)
+                               dashboard=dashboard, progress=False if args.quiet else None,
+                               want_results=args.compare)
     finally:
         remove_cleanup(runner.close_local_clusters)
     print(table.summary(out.frame, out.wall_time, where=out.where))
     note = table.merge_note(out.frame, out.merged)
-    print("wrote " + ", ".join(str(p) for p in out.files) + (f" ({note})" if note else ""))
+    files = list(out.files)
+    if args.compare:
+        files += _leaderboards(args, job_list, out)
+    print("wrote " + ", ".join(str(p) for p in files) + (f" ({note})" if note else ""))
     ok = bool(out.frame["success"].all())
     if not ok:
         print(f"brdffit batch: {int((~out.frame['success']).sum())} of {len(out.frame)} fits "
               "not successful (see the table's outcome and message columns)", file=sys.stderr)
     return 0 if ok else 1
+
+
+def _leaderboards(args, job_list, out) -> list:
+    """``--compare``: the per-material leaderboards of the batch's results (and the published
+    fits), printed and written to OUTDIR (:mod:`brdffit.batch.compare`)."""
+    from ..batch import compare
+    from ._common import Progress
+
+    frame, notes = compare.leaderboards(job_list, out.results, args.published, args.rank_by,
+                                        Progress.of(args))
+    for note in notes:
+        print(f"brdffit batch: warning: leaderboard: {note}", file=sys.stderr)
+    print(compare.summary(frame))
+    return compare.write(frame, args.outdir) if not frame.empty else []

@@ -25,9 +25,14 @@ Selection happens in two stages, so that every table of one layout compiles once
   the rows near the peak decide the lobe's width; on 69 measured materials that made the
   ``beckmann`` roughness systematically narrower than the published Cook–Torrance fits
   Measurements with ``σ`` are χ² terms and are not reweighted.
+  ``weighting="solid-angle"`` multiplies that share by the density of direction pairs
+  ``sinθh sinθd cosθd`` (:func:`brdffit.metrics.solid_angle_weight`): each cell counts by the
+  solid angle ``dωi dωo`` it stands for, the measure of the MERL-fitting studies' errors (Ngan
+  et al. 2005, Löw et al. 2012); the peak's rows and the grazing ``θd`` then count little.
 
 Burley 2012 §3.1/§4.7: data past about 75–80° is extrapolated in the MERL set; ``cutoff=80``
-drops it. The default keeps everything (the caller decides).
+drops it. :func:`select` keeps everything unless given a ``cutoff``; a fit's default is
+:data:`brdffit.config.DEFAULT_CUTOFF` (80°), the caller's options decide.
 
 Memory: a fit holds about :data:`FIT_BYTES_PER_CELL` bytes per selected cell beyond its input
 (host gathers, the device arrays, the solver's buffers) and :data:`FIT_FIXED_BYTES` for the
@@ -193,9 +198,19 @@ WEIGHTINGS = OPTIONS["weighting"].choices
 def measure_weight(samples, rows, weighting: str = "angles"):
     """``(len(rows),)`` multipliers of the squared residuals of ``samples[rows]``, or ``None``
     for none: ``SampleSet.weight`` under ``weighting="angles"`` (where the layout gives one and
-    the samples carry no ``σ``), nothing under ``"samples"`` (checked by :func:`select`)."""
+    the samples carry no ``σ``), that times the density of direction pairs under
+    ``"solid-angle"`` (:func:`brdffit.metrics.solid_angle_weight`), nothing under ``"samples"``
+    (checked by :func:`select`)."""
     weight = getattr(samples, "weight", None)
-    if weighting == "samples" or weight is None or getattr(samples, "sigma", None) is not None:
+    if weighting == "samples" or getattr(samples, "sigma", None) is not None:
+        return None
+    if weighting == "solid-angle":
+        from ..metrics import solid_angle_weight
+
+        wi, wo = np.asarray(samples.wi, float)[rows], np.asarray(samples.wo, float)[rows]
+        return solid_angle_weight(wi, wo, None if weight is None else
+                                  np.asarray(weight, float)[rows])
+    if weight is None:
         return None
     return np.asarray(weight, float)[rows]
 

@@ -87,7 +87,9 @@ class Settings:
             ``FitResult``.
         fixed: name → value of scalars held fixed (``"f0"`` or one component ``"f0[1]"``).
         bounds: name → ``(lo, hi)`` overriding the declared bounds.
-        cutoff: drop cells with ``θi`` or ``θo`` above this many degrees (Burley 2012 §4.7).
+        cutoff: drop cells with ``θi`` or ``θo`` above this many degrees (Burley 2012 §4.7;
+            default :data:`brdffit.config.DEFAULT_CUTOFF`, 80°; ``None`` given explicitly or
+            90 keeps every cell above the horizon).
         subsample: a cell count, a fraction, or a :class:`~brdffit.fitting.data.Subsample`.
         seed: for the subsample and the multi-start perturbations.
         multistart: number of extra perturbed starts; the lowest cost wins.
@@ -115,7 +117,9 @@ class Settings:
         weighting: ``"angles"`` (default): each squared residual counts by the share of the
             angle domain its sample stands for (``SampleSet.weight``; on a MERL table the
             ``θh`` width of its cell, which undoes the format's warp towards the peak);
-            ``"samples"``: every sample counts once. See :mod:`brdffit.fitting.data`.
+            ``"samples"``: every sample counts once; ``"solid-angle"``: by the solid angle
+            ``dωi dωo`` it stands for (the MERL-fitting studies' measure). See
+            :mod:`brdffit.fitting.data`.
     """
 
     loss: Loss

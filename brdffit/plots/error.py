@@ -5,8 +5,9 @@ with every other metric in :mod:`brdffit.metrics`): a figure of a fit result tak
 from ``result.metrics`` (:func:`result_error`), so the figure, the summary, the report and the
 JSON show one number. A figure of a model and parameters without a result computes the same
 formula (:func:`brdffit.metrics.values`) over at most 100 000 valid measurements above the
-horizon (:func:`error_pairs`, seeded); over the cells a fit used (no ``cutoff``, no
-``subsample``) that is the fit's value.
+horizon within the default cutoff (θi, θo ≤ :data:`brdffit.config.DEFAULT_CUTOFF`, the cells a
+fit uses unless told otherwise; :func:`error_pairs`, seeded); over the cells a default fit used
+(no ``subsample``) that is the fit's value.
 
 The slice's ratio panel shows every cell's relative error instead, the log ratio
 
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..config import DEFAULT_CUTOFF
 from ..metrics import FIGURE_METRIC, metric_text, values
 from ._eval import evaluate_model, is_table, sample_view
 
@@ -41,8 +43,9 @@ def _table_pairs(table, idx):
     return np.asarray(wi, float), np.asarray(wo, float), rgb
 
 
-def error_pairs(data, *, max_samples: int = 100_000, seed: int = 0):
-    """``(wi, wo, rgb)``: at most ``max_samples`` valid measurements above the horizon (seeded)."""
+def error_pairs(data, *, max_samples: int = 100_000, seed: int = 0, cutoff=DEFAULT_CUTOFF):
+    """``(wi, wo, rgb)``: at most ``max_samples`` valid measurements above the horizon with
+    θi, θo at most ``cutoff`` degrees (``None``: every one), seeded."""
     rng = np.random.default_rng(seed)
     if is_table(data):
         idx = np.flatnonzero(np.asarray(data.valid, bool))
@@ -56,6 +59,8 @@ def error_pairs(data, *, max_samples: int = 100_000, seed: int = 0):
             ok = np.sort(rng.choice(ok, max_samples, replace=False))
         wi, wo, rgb = data.wi[ok], data.wo[ok], np.asarray(data.rgb, float)[ok]
     keep = (wi[:, 2] > 0) & (wo[:, 2] > 0) & np.all(np.isfinite(rgb), axis=-1)
+    if cutoff is not None:
+        keep &= np.minimum(wi[:, 2], wo[:, 2]) >= np.cos(np.radians(float(cutoff)))
     return wi[keep], wo[keep], rgb[keep]
 
 

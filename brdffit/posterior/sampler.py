@@ -131,6 +131,18 @@ def _least_squares(table, result_or_model, loss, fit_kwargs):
     return refit, time.perf_counter() - t
 
 
+def _cutoff_of(result_or_model):
+    """The cutoff a result was fitted with: its recorded option (``None``: every cell); the
+    default (:data:`brdffit.config.DEFAULT_CUTOFF`) for a model name or a result that records
+    no options."""
+    from ..config import DEFAULT_CUTOFF
+
+    options = (getattr(result_or_model, "provenance", None) or {}).get("options")
+    if options is None or "cutoff" not in options:
+        return DEFAULT_CUTOFF
+    return options["cutoff"]
+
+
 def _weighting_of(result_or_model) -> str:
     """The weighting a result was fitted with: its recorded option; ``"samples"`` for a result
     whose recorded options predate the option (every sample counted once then); else the
@@ -303,7 +315,8 @@ def sample_posterior(table, result_or_model, options=None, mcmc: McmcOptions | N
             values and errors reported beside the posterior are of the same cells.
         prior: name → ``(lo, hi)`` / ``Uniform`` / ``LogUniform`` / ``Normal`` (see
             :mod:`.priors`); default uniform within the physical bounds.
-        loss, cutoff, bounds: as for :func:`brdffit.fit` (``loss`` defaults to the result's).
+        loss, cutoff, bounds: as for :func:`brdffit.fit` (``loss`` defaults to the result's,
+            ``cutoff`` to the result's recorded one, else the fit's default of 80°).
         weighting: as for :func:`brdffit.fit`; default the result's (recorded in its
             provenance), else ``"angles"``, so that the likelihood weights the cells as the
             fit did.
@@ -346,6 +359,8 @@ def _sample(table, result_or_model, fit: FitOptions, mcmc: McmcOptions, progress
             "column (or sigma_r, sigma_g, sigma_b); use noise='fixed' or 'sampled' otherwise"
         )
     loss, cutoff, bounds = fit.loss, fit.cutoff, fit.bounds or None
+    if cutoff is None:  # the fit's own cells: its recorded cutoff, else the default
+        cutoff = _cutoff_of(result_or_model)
     subsample, seed = mcmc.subsample, mcmc.seed
     fit_kwargs = {"cutoff": cutoff, "subsample": subsample, "seed": seed, "bounds": bounds,
                   "fixed": fit.fixed or None, "init": fit.init or None, "weighting": weighting}
