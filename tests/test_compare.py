@@ -23,7 +23,7 @@ from brdffit.cli import main
 from brdffit.metrics import LITERATURE_METRICS, literature_values, solid_angle_weight
 
 SHAPE = (16, 16, 32)
-TRUTH = {"diffuse": [0.1, 0.06, 0.02], "f0": [0.9, 0.6, 0.3], "alpha": 0.12, "f90": 1.0}
+TRUTH = {"diffuse": [0.1, 0.06, 0.02], "f0": [0.9, 0.6, 0.3], "alpha": 0.12, "grazing": 1.0}
 #: A published line of the test-only class: off the truth (roughness 0.2), so a fit beats it.
 LINE = ("{name} = Aggregate(Lambertian(albedo = [0.1, 0.06, 0.02]), "
         "TestGGX(ks = [0.9, 0.6, 0.3], roughness = {alpha}))")
@@ -37,7 +37,7 @@ def test_form(monkeypatch):
 
     form = pub.PublishedForm(
         "TestGGX", "ggx", lambda fit: {"diffuse": fit.albedo, "f0": fit.params["ks"],
-                                       "alpha": fit.params["roughness"], "f90": 1.0},
+                                       "alpha": fit.params["roughness"], "grazing": 1.0},
         study="Test 2099")
     monkeypatch.setitem(pub._FORMS, "TestGGX", form)
     return form
