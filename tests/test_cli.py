@@ -15,7 +15,7 @@ import brdffit
 from brdffit.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
-TRUTH = {"diffuse": [0.1, 0.06, 0.02], "f0": [0.9, 0.6, 0.3], "alpha": 0.2}
+TRUTH = {"diffuse": [0.05, 0.03, 0.01], "f0": [0.9, 0.6, 0.3], "alpha": 0.2}  # a gold: no strong diffuse under a metal F0
 MERL_BYTES = 34_992_012
 
 

@@ -182,7 +182,7 @@ def test_the_cosine_loss_on_a_polished_metal_is_loudly_implausible(cells):
     checks = _checks(res.plausibility)
     assert {n for n, c in checks.items() if c["passed"] is False} == {
         "energy", "diffuse_bound", "error"}
-    assert "with the cosine loss (absolute errors)" in checks["diffuse_bound"]["meaning"]
+    assert f"with the {preset.loss} loss (absolute errors)" in checks["diffuse_bound"]["meaning"]
     assert "fit with the log loss" in checks["diffuse_bound"]["meaning"]
     log = brdffit.fit(cells["ss440"], "ggx", cutoff=preset.cutoff)
     assert log.success and log.plausible is True, log.plausibility

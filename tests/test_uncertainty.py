@@ -119,7 +119,7 @@ def test_the_posterior_runs_on_stated_cells_beside_least_squares_of_the_same_cel
         post = sample_posterior(cells, fit, subsample=500, nwalkers=16, nsteps=40, burn=10)
     direct = brdffit.fit(cells, "ggx", subsample=500, seed=0)
     assert post.settings["n_cells"] == direct.n_cells == 500
-    assert post.settings["fit_n_cells"] == fit.n_cells == 4000
+    assert post.settings["fit_n_cells"] == fit.n_cells < 4000  # the default cells, θ ≤ 80°
     assert post.noise["mode"] == "sandwich"
     se = dict(zip(direct.names, np.sqrt(np.diag(direct.cov))))
     x_post, x_direct = dict(zip(post.names, post.x_ls)), dict(zip(direct.names, direct.x))
@@ -130,7 +130,7 @@ def test_the_posterior_runs_on_stated_cells_beside_least_squares_of_the_same_cel
         assert abs(x_post[n] - x_direct[n]) < 0.05 * se[n], n
         assert post.stderr_ls[n] == pytest.approx(se[n], rel=0.02), n
     text = post.summary()
-    assert "68 % credible intervals on 500 of the fit's 4000 cells" in text
+    assert f"68 % credible intervals on 500 of the fit's {fit.n_cells} cells" in text
     assert "do not cover the model error" in text
     assert json.loads(post.to_json())["intervals"] == post.interval_meaning
 

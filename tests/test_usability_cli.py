@@ -143,7 +143,8 @@ def test_the_posterior_summary_lines_up_with_long_parameter_names():
         diagnostics=diagnostics, model_name="disney", table="t", wall_time=1.0,
         noise=dict(mode="fixed", sigma=0.01), names=[*names, "specular_tint"],
         x_ls=[0.1, 0.5, 0.04, 0.2], stderr_ls={"alpha": 0.001}, sampled=names,
-        percentiles=dict.fromkeys(names, (0.1, 0.2, 0.3)), fixed=["specular_tint"])
+        percentiles=dict.fromkeys(names, (0.1, 0.2, 0.3)), fixed=["specular_tint"],
+        interval_meaning="p16–p84: 68 % credible intervals on 1000 cells")
     head, *rows = PosteriorResult.summary(post).split("\n")[1:6]
     ends = [i + len(w) for i, w in zip(_starts(head), head.split())]
     for row in rows[:3]:

@@ -116,6 +116,7 @@ def frame(rows: list[dict]):
         df[col] = df[col].fillna(False).astype(bool)
     for col in ("steps", "n_cells"):
         df[col] = df[col].astype("Int64")
+    df["plausible"] = df["plausible"].astype("boolean")  # <NA> where no verdict: Parquet keeps it
     return df
 
 

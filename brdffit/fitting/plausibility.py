@@ -120,7 +120,7 @@ def white_diffuse(params, loss: str = "") -> dict | None:
         return None
     top = float(np.max(albedo))
     ok = top < WHITE
-    absolute = loss.split("+")[0] in ("linear", "cosine")
+    absolute = loss.split("+")[0] in ("linear", "cosine", "cosine-in")
     cause = (f"with the {loss} loss (absolute errors) the specular peak's residuals outweigh "
              f"the whole diffuse signal, so the diffuse term is barely determined and takes up "
              f"the peak's shoulders; fit with the log loss, or fix {what}" if absolute else

@@ -90,8 +90,10 @@ class LogPosterior(eqx.Module):
         adjust, anchor: the curvature adjustment ``C`` and its centre ``θ̂`` (mode
             ``"sandwich"``): the likelihood is evaluated at ``θ̂ + C(θ − θ̂)``; ``None`` for
             the plain likelihood.
-        lo, hi: the free scalars' physical bounds; an adjusted point outside them has zero
-            likelihood (the model is not defined there).
+        lo, hi: the free scalars' physical bounds; an adjusted point outside them is moved to
+            the nearest point inside (the adjustment is a local map about ``θ̂``: a walker far
+            from it, in a user's prior that excludes ``θ̂``, would otherwise have no density at
+            all, and the sampler could not start).
     """
 
     problem: Problem
@@ -112,8 +114,7 @@ class LogPosterior(eqx.Module):
         inside = jnp.isfinite(lp)
         x = theta[:n_free]
         if self.adjust is not None:
-            x = self.anchor + self.adjust @ (x - self.anchor)
-            inside = inside & jnp.all((x >= self.lo) & (x <= self.hi))
+            x = jnp.clip(self.anchor + self.adjust @ (x - self.anchor), self.lo, self.hi)
         x = jnp.where(inside, x, self.center)
         r = self.problem.residual_x(x, self.data).astype(theta.dtype)
         sigma = jnp.where(inside, theta[n_free], 1.0) if self.sample_sigma else self.sigma
