@@ -31,14 +31,15 @@ brdffit model / parameter                target
   ``eta``, ``k`` (RGB)                   ``eta``, ``k`` as ``rgb``
   ``specular_reflectance`` (``-tint``)   ``specular_reflectance`` as ``rgb``; ``eta = 0``,
                                          ``k = 1`` (Mitsuba's defaults: ``F = 1``)
-``gltf-pbr``, ``gltf-pbr-clearcoat``    glTF 2.0 ``materials[0].pbrMetallicRoughness``
+``gltf-pbr``, ``gltf-pbr-clearcoat``     glTF 2.0 ``materials[0].pbrMetallicRoughness``
   ``base_color`` (RGB, linear)           ``baseColorFactor`` ``[r, g, b, 1]``
   ``metallic``                           ``metallicFactor``
   ``roughness``                          ``roughnessFactor`` (``α = roughness²``)
   ``ior`` (when not 1.5)                 ``KHR_materials_ior`` ``ior``
   ``specular`` (when below 1)            ``KHR_materials_specular`` ``specularFactor``
                                          (``specularColorFactor`` white)
-  ``clearcoat``, ``clearcoat_roughness``  ``KHR_materials_clearcoat`` ``clearcoatFactor``,
+  ``clearcoat``                          ``KHR_materials_clearcoat`` ``clearcoatFactor``
+  ``clearcoat_roughness``                ``KHR_materials_clearcoat``
                                          ``clearcoatRoughnessFactor``
 =======================================  ======================================================
 
