@@ -28,6 +28,7 @@ import realistic
 from brdffit.cli import main
 from brdffit.export import export
 from brdffit.export.gltf import params_from_gltf, sphere
+from test_export import _pairs
 from brdffit.export.gltf_reference import document_brdf
 from brdffit.fitting import measure
 from brdffit.models.evaluate import evaluate_model
@@ -53,16 +54,6 @@ DIELECTRICS = [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=_GLTF
                          "light-red-paint", "pink-plastic", "specular-black-phenolic"]]
 
 
-def _pairs(n, seed=0):
-    rng = np.random.default_rng(seed)
-
-    def hemi():
-        z = rng.uniform(0.02, 1.0, n)
-        phi = rng.uniform(0, 2 * np.pi, n)
-        r = np.sqrt(1 - z**2)
-        return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
-
-    return hemi(), hemi()
 
 
 EXTENDED = [

@@ -55,14 +55,13 @@ from data_formats.published import PublishedFit
 
 from ..terms._math import cos_theta, dot, half_vector, safe_div, safe_sqrt
 from ..terms.diffuse import lambert
-from ..terms.fresnel import dielectric, f90_from_rise, ior_from_f0, schlick
+from ..terms.fresnel import dielectric, ior_from_f0
 from ..terms.masking import G2_vgroove
-from ..terms.microfacet import microfacet_specular
 from ..terms.ndf import ABC, SGD, StudentT, bagher_g1
 from ..terms.ndf.sgd import theta_of
 from .published import PublishedForm, register_published
 from .registry import Model, Param, PerPass, register
-from .standard import ALPHA, DIFFUSE, F0, GRAZING, grazing_f90
+from .standard import ALPHA, DIFFUSE, F0, GRAZING, grazing_f90, lobe_with
 
 # --- Löw 2012 ------------------------------------------------------------------------------
 
@@ -247,17 +246,12 @@ STUDENT_GAMMA = Param("gamma", (), 1.6, 1e3, 2.0,
                       log=True, scan=False)
 
 
-def _student_t_lobe(ndf, p, wi, wo):
-    return lambert(p["diffuse"], wi, wo) + microfacet_specular(
-        ndf, partial(schlick, p["f0"], f90=f90_from_rise(p["f0"], p["grazing"])), wi, wo)
-
-
 def _student_t_table(p):
     return StudentT(p["alpha"], p["gamma"]).lambda_table()
 
 
 def _student_t_with_table(p, table, wi, wo):
-    return _student_t_lobe(StudentT(p["alpha"], p["gamma"], table=table), p, wi, wo)
+    return lobe_with(StudentT(p["alpha"], p["gamma"], table=table), p, wi, wo)
 
 
 STUDENT_T_MODEL = register(
@@ -268,7 +262,7 @@ STUDENT_T_MODEL = register(
                      "F90 = F0 + (1 - F0) grazing)"),
         params=(DIFFUSE, F0, ALPHA, STUDENT_GAMMA, GRAZING),
         derived=grazing_f90,
-        fn=lambda p, wi, wo: _student_t_lobe(StudentT(p["alpha"], p["gamma"]), p, wi, wo),
+        fn=lambda p, wi, wo: lobe_with(StudentT(p["alpha"], p["gamma"]), p, wi, wo),
         reference="Ribardière et al. 2017 eqs. 10, 13-15; RTR eqs. 9.34, 9.23/9.24, 9.31, 9.18",
         per_pass=PerPass(build=_student_t_table, apply=_student_t_with_table,
                          uses=("alpha", "gamma")),

@@ -60,12 +60,12 @@ def _single_lobe(ndf_from_params):
     generalized Schlick ``F`` (``F0`` RGB, rise ``t`` scalar)."""
 
     def fn(p, wi, wo):
-        return _lobe_with(ndf_from_params(p), p, wi, wo)
+        return lobe_with(ndf_from_params(p), p, wi, wo)
 
     return fn
 
 
-def _lobe_with(ndf, p, wi, wo):
+def lobe_with(ndf, p, wi, wo):
     return lambert(p["diffuse"], wi, wo) + microfacet_specular(
         ndf, _fresnel(p), wi, wo
     )
@@ -81,7 +81,7 @@ def _gtr_table(p):
 
 
 def _gtr_with_table(p, table, wi, wo):
-    return _lobe_with(GTR(p["alpha"], p["gamma"], table=table), p, wi, wo)
+    return lobe_with(GTR(p["alpha"], p["gamma"], table=table), p, wi, wo)
 
 
 GGX_MODEL = register(
