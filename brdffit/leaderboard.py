@@ -66,8 +66,14 @@ class Candidate:
         return self.result.model_name
 
     @property
-    def converged(self) -> bool:
-        return bool(self.result.success)
+    def converged(self) -> bool | None:
+        """Whether the fit converged; ``None`` for a published fit (nothing was fitted here)."""
+        return None if self.kind == "published" else bool(self.result.success)
+
+    @property
+    def status(self) -> str:
+        """``"yes"``, ``"NO"`` (a fit that did not converge) or ``"published"``."""
+        return "published" if self.converged is None else ("yes" if self.converged else "NO")
 
     @property
     def source(self) -> str:
@@ -93,7 +99,8 @@ class Leaderboard:
     @property
     def frame(self):
         """A pandas DataFrame, one row per candidate in rank order: ``rank``, ``candidate``,
-        ``kind``, ``model``, ``source``, ``converged``, every metric of
+        ``kind``, ``model``, ``source``, ``converged`` (nullable: missing for a published fit),
+        every metric of
         :data:`~brdffit.metrics.LITERATURE_METRICS`, ``rank_<metric>`` for each, ``time``
         (seconds of the fit; 0 for a published fit), ``material`` and ``n_cells``."""
         import pandas as pd
@@ -108,6 +115,7 @@ class Leaderboard:
         df = pd.DataFrame(rows, columns=["material", "rank", "candidate", "kind", "model",
                                          "source", "converged", *LITERATURE_METRICS, "time",
                                          "n_cells"])
+        df["converged"] = df["converged"].astype("boolean")
         for m in LITERATURE_METRICS:
             df[f"rank_{m}"] = df[m].rank(method="min", na_option="bottom").astype(int)
         return df
@@ -128,7 +136,7 @@ class Leaderboard:
         head = ("rank", "candidate", "source", "conv.", *names, "time")
         rows = [head]
         for k, c in enumerate(self.candidates, 1):
-            rows.append((str(k), c.label, c.source, "yes" if c.converged else "NO",
+            rows.append((str(k), c.label, c.source, c.status,
                          *(_number(c.scores.get(m, math.nan)) for m in names),
                          f"{c.result.wall_time:.2f}s" if c.kind == "fit" else "-"))
         align = "><<<" + ">" * (len(names) + 1)
@@ -409,7 +417,7 @@ def _table_html(board: Leaderboard) -> str:
         cells = "".join(
             f"<td{' class=best' if c.scores.get(m) == best[m] else ''}>"
             f"{_number(c.scores.get(m, math.nan))}</td>" for m in names)
-        conv = "yes" if c.converged else "<b>NO</b>"
+        conv = "<b>NO</b>" if c.status == "NO" else c.status
         rows.append(f"<tr><td>{k}</td><td>{html.escape(c.label)}</td>"
                     f"<td>{html.escape(c.source)}</td><td>{conv}</td>{cells}</tr>")
     return ("<table class='board'><tr><th>rank</th><th>candidate</th><th>source</th>"

@@ -43,6 +43,9 @@ directions and no longer depends on how densely the layout samples the peak). Wi
         \bigl(\ln(1 + \hat f\cos\theta_i) - \ln(1 + f\cos\theta_i)\bigr)^2 / \sum_C w}
         \quad\text{(Löw et al. 2012's E2 error, every cell above the horizon)}\\
     \mathrm{log\_rms\_80} &= \text{the same over } \theta_i, \theta_o \le 80°\\
+    \mathrm{cos\_rms} &= \sqrt{\textstyle\sum_C w\,\tfrac13\sum_c
+        \bigl((\hat f - f)\cos\theta_i\bigr)^2 / \sum_C w}
+        \quad\text{(Löw et al. 2012's E1 error, every cell above the horizon)}\\
     \mathrm{ngan\_rms\_80} &= \sqrt{\textstyle\sum_C w\,\tfrac13\sum_c
         \bigl((\hat f - f)\cos\theta_i\bigr)^2 / \sum_C w}, \quad \theta_i, \theta_o \le 80°
         \quad\text{(Ngan et al. 2005)}\\
@@ -142,6 +145,12 @@ LITERATURE_METRICS = {m.name: m for m in (
            "the log metric where renderers and measurements are trustworthy"),
     Metric("log_rms_80_sa", "RMS log error, θ ≤ 80°, solid-angle weighted",
            "log_rms_sa over θi, θo ≤ 80°", "the same, as an integral over direction pairs"),
+    Metric("cos_rms", "cosθi-weighted RMS (Löw 2012 E1), per cell",
+           "√(Σ (Δf_r cosθi)² / N)", "Löw et al. 2012's L2 error (E1) over every cell above the "
+           "horizon, 1/sr"),
+    Metric("cos_rms_sa", "cosθi-weighted RMS (Löw 2012 E1), solid-angle weighted",
+           "√(Σ Ω (Δf_r cosθi)² / Σ Ω)", "E1 as an integral over direction pairs (bbm's lowL2), "
+           "1/sr"),
     Metric("ngan_rms_80", "cosθi-weighted RMS (Ngan 2005), θ ≤ 80°, per cell",
            "√(Σ (Δf_r cosθi)² / N), θi, θo ≤ 80°", "Ngan et al. 2005's error, 1/sr"),
     Metric("ngan_rms_80_sa", "cosθi-weighted RMS (Ngan 2005), θ ≤ 80°, solid-angle weighted",
@@ -215,6 +224,7 @@ def literature_values(fitted, measured, wi, wo, weight=None) -> dict:
     for suffix, w in (("", ones), ("_sa", omega)):
         out[f"log_rms{suffix}"] = np.sqrt(_weighted_mean(log_sq, w))
         out[f"log_rms_80{suffix}"] = np.sqrt(_weighted_mean(log_sq[inside], w[inside]))
+        out[f"cos_rms{suffix}"] = np.sqrt(_weighted_mean(cos_sq, w))
         out[f"ngan_rms_80{suffix}"] = np.sqrt(_weighted_mean(cos_sq[inside], w[inside]))
         out[f"peak_rel{suffix}"] = _weighted_mean(rel[peak], w[peak])
     return {name: float(out[name]) for name in LITERATURE_METRICS}

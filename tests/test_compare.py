@@ -98,6 +98,7 @@ def _numpy_metrics(f, m, wi, wo, weight):
         rel = (np.abs(f - m) / np.maximum(m, 1e-3)).mean(1)
         out["log_rms" + suffix] = math.sqrt(mean(logsq, every))
         out["log_rms_80" + suffix] = math.sqrt(mean(logsq, inside))
+        out["cos_rms" + suffix] = math.sqrt(mean(cossq, every))
         out["ngan_rms_80" + suffix] = math.sqrt(mean(cossq, inside))
         out["peak_rel" + suffix] = mean(rel, peak)
     return out
@@ -229,6 +230,11 @@ def test_a_table_made_from_one_model_ranks_that_model_first(shiny, fits_dir, tes
     for name in LITERATURE_METRICS:  # first in every metric, not just the ranking one
         assert df.loc[df["candidate"] == "ggx", f"rank_{name}"].item() == 1, name
     assert df.loc[df["kind"] == "published", "source"].item() == "published: Test 2099 E2"
+    # a published fit was not fitted here: its row says so instead of "converged"
+    assert df.loc[df["kind"] == "published", "converged"].isna().all()
+    assert df.loc[df["kind"] == "fit", "converged"].all()
+    pub_line = next(line for line in board.text().splitlines() if "Test 2099" in line)
+    assert " published " in pub_line and " yes " not in pub_line
     assert (df["n_cells"] == board.n_cells).all() and "ggx" in board.text()
 
 
