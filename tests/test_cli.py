@@ -299,6 +299,8 @@ def test_demo_recovers_the_known_material(capsys, tmp_path):
     result = json.loads((outdir / "result.json").read_text())
     for name, true in DEMO_TRUTH.items():  # 1% noise: close, not exact
         np.testing.assert_allclose(result["params"][name], true, rtol=0.03, atol=2e-3)
+    # the first material a user sees is one a renderer can trust, and says so
+    assert result["plausibility"]["plausible"], result["plausibility"]
     assert sorted(p.name for p in outdir.iterdir()) == [
         "brdffit-demo.json", "demo-albedo.png", "demo-peaks.png", "demo-slice.png",
         "demo-spheres.png", "result.json"]
