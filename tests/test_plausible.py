@@ -101,6 +101,20 @@ def test_a_black_metal_is_flagged():
     assert _checks(verdict_record(assess("gltf-pbr", gold, {})))["dark_metal"]["passed"] is True
 
 
+def test_a_gltf_dielectric_with_a_metals_ior_is_flagged():
+    """``ior`` 5 (F0 0.44) on a mostly dielectric glTF material: the flat Fresnel curve of a
+    metal read as a dielectric (the realistic brass and chrome-steel fits); a plastic's ior, or
+    the same ior on a metal, passes."""
+    base = {"base_color": [0.25, 0.12, 0.03], "roughness": 0.1, "specular": 0.03}
+    bad = _checks(verdict_record(assess("gltf-pbr", {**base, "metallic": 0.23, "ior": 5.0}, {})))
+    assert bad["metal_dielectric"]["passed"] is False
+    assert bad["metal_dielectric"]["value"] == pytest.approx((4 / 6) ** 2)
+    assert "ior 5" in bad["metal_dielectric"]["meaning"]
+    for ok in ({**base, "metallic": 0.0, "ior": 1.6}, {**base, "metallic": 0.9, "ior": 5.0},
+               {**base, "metallic": 0.0, "ior": 2.42}):
+        assert _checks(verdict_record(assess("gltf-pbr", ok, {})))["metal_dielectric"]["passed"]
+
+
 @pytest.mark.parametrize("alpha", [0.002, 0.02, 0.2, 0.5, 1.0])
 def test_the_energy_checks_coarse_grid_agrees_with_the_figures_grid(alpha):
     """The check's 64 × 32 grid against the albedo figure's 64 × 128 (whose accuracy

@@ -31,7 +31,14 @@ listed passed. The checks (:data:`CHECKS`, in this order):
 * ``metal_dielectric``: a metal-like specular (mean ``F0`` above
   :data:`brdffit.models.starts.METAL_F0`) over a strong diffuse term (:data:`STRONG_DIFFUSE`):
   metals have no diffuse term, dielectrics reflect 2–8 % at normal incidence; a metallic
-  paint is both, a fit that traded one lobe for the other is neither.
+  paint is both, a fit that traded one lobe for the other is neither. In a model with a
+  dielectric ``ior`` beside ``metallic`` (``gltf-pbr``, ``KHR_materials_ior``): a mostly
+  dielectric material (``metallic`` below 0.5) whose ``ior`` gives a metal's ``F0``
+  (``((ior − 1)/(ior + 1))²`` above ``METAL_F0``: ``ior`` above 3; diamond's 2.42 gives 0.17).
+  ``KHR_materials_specular`` scales ``F0`` and ``F90`` together, so the ``ior`` sets the ratio
+  of the normal to the grazing reflectance: above 3 it is a metal's flat Fresnel curve on a
+  dielectric, the fit's way of reading a metal whose measured reflectance does not rise
+  towards grazing (the glTF metal's does, to 1).
 * ``error``: the fit's error in the literature's metrics (:data:`brdffit.metrics.METRICS`):
   ``rel_error`` at most :data:`REL_ERROR_LIMIT`; the meaning carries ``rmse_log`` and
   ``rmse_cosine`` beside it. ``rel_error`` counts every cell's error relative to the measured
@@ -145,7 +152,10 @@ def black_metal(params) -> dict | None:
 
 
 def metal_over_diffuse(params) -> dict | None:
-    """The ``metal_dielectric`` check, where the model has ``f0`` and ``diffuse``."""
+    """The ``metal_dielectric`` check, where the model has ``f0`` and ``diffuse`` (or a
+    dielectric ``ior`` beside ``metallic``: :func:`metal_ior`)."""
+    if "ior" in params and "metallic" in params:
+        return metal_ior(params)
     if "f0" not in params or "diffuse" not in params:
         return None
     f0, diffuse = float(np.mean(_rgb(params["f0"]))), float(np.max(_rgb(params["diffuse"])))
@@ -155,6 +165,22 @@ def metal_over_diffuse(params) -> dict | None:
                f"a metal's F0 (mean {f0:.2g} > {METAL_F0:g}) over a strong diffuse term "
                f"({diffuse:.2g} > {STRONG_DIFFUSE:g}): neither metal nor dielectric; a "
                f"metallic paint, or a fit that traded one lobe for the other")
+    return _check("metal_dielectric", ok, f0, METAL_F0, meaning)
+
+
+def metal_ior(params) -> dict:
+    """The ``metal_dielectric`` check of a metallic-roughness model with a dielectric ``ior``
+    (module docstring)."""
+    from ..terms.fresnel import f0_from_ior
+
+    ior, metallic = float(params["ior"]), float(params["metallic"])
+    f0 = float(f0_from_ior(ior))
+    ok = not (metallic < 0.5 and f0 > METAL_F0)
+    meaning = ("the dielectric's ior gives a dielectric's F0" if ok else
+               f"a dielectric (metallic {metallic:.2g}) with ior {ior:.3g}: F0 {f0:.2g} > "
+               f"{METAL_F0:g}, a metal's flat Fresnel curve; neither metal nor dielectric (a "
+               f"metal whose measured reflectance does not rise towards grazing as the model's "
+               f"metal does)")
     return _check("metal_dielectric", ok, f0, METAL_F0, meaning)
 
 
