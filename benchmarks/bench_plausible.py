@@ -1,7 +1,7 @@
 """Benchmark: how many default fits of the realistic corpus are implausible materials (by hand).
 
     .venv/bin/python benchmarks/bench_plausible.py [--models ggx,gtr,...] [--materials N |
-        --names a,b] [--cache DIR] [--csv out.csv]
+        --names a,b] [--cache DIR] [--csv out.csv] [--cutoff DEG]
 
 Fits every material of ``../shared/realistic`` (rendered as in ``bench_realistic.py``) with each
 model under :func:`brdffit.fit`'s defaults and applies checks of its own to every result, so
@@ -19,11 +19,16 @@ that two checkouts (``PYTHONPATH=/path/to/other/checkout``) are counted by the s
   metal: the fit traded the colour away);
 * ``metal-dielectric``: a dielectric that looks like a metal or the reverse: ``metallic`` ≥ 0.5
   where the material's measured diffuse floor (the median of the table's cells with θh > 40°
-  and θd < 60°) is above 0.02 /sr in some channel — a metal has no diffuse floor;
+  and θd < 60°) is above 0.02 /sr in some channel — a metal has no diffuse floor; or, in a
+  model with a dielectric ``ior`` (``gltf-pbr``), ``metallic`` < 0.5 with ``ior`` > 3 (the
+  dielectric's ``F0`` above 0.25: a metal's flat Fresnel curve read as a dielectric);
 * ``not converged``: ``success`` false.
 
 Per model: the count of fits failing each check, the median and worst ``rmse_log`` and
-``rmse_cosine``, the median warm time. ``--csv`` writes the rows (parameters as JSON) for a
+``rmse_cosine`` (on the fit's own cells), the median and worst ``log_rms_80`` (Löw's log RMS
+over the cells with θi, θo ≤ 80°, computed here: the same cells for every fit and every
+checkout, whatever cells the fit used), the median warm time. ``--cutoff DEG`` fits on the
+cells within ``DEG`` only (the code's default otherwise). ``--csv`` writes the rows (parameters as JSON) for a
 comparison of two runs.
 """
 
@@ -85,8 +90,29 @@ def checks(model, params: dict, success: bool, floor: np.ndarray) -> dict:
         base = p.get("base_color", np.ones(3))
         out["dark-metal"] = bool(metallic >= 0.9 and np.all(base < 0.05))
         out["metal-dielectric"] = bool(metallic >= 0.5 and np.max(floor) > 0.02)
+        if "ior" in p:  # a dielectric with a metal's F0 ((ior-1)/(ior+1))^2 > 0.25
+            out["metal-dielectric"] |= bool(metallic < 0.5 and float(p["ior"]) > 3.0)
     out["not converged"] = not success
     return out
+
+
+def log_rms_80(table, model, params) -> float:
+    """Löw's log RMS of ``model`` with ``params`` over the valid cells of ``table`` with
+    θi, θo ≤ 80° (NumPy on the model's own function, in float64)."""
+    import jax.numpy as jnp
+
+    s = table.to_samples()
+    wi, wo, m = np.asarray(s.wi, float), np.asarray(s.wo, float), np.asarray(s.rgb, float)
+    c80 = np.cos(np.radians(80.0))
+    keep = (np.asarray(s.valid, bool) & (wi[:, 2] >= c80) & (wo[:, 2] >= c80)
+            & np.all(np.isfinite(m), axis=1) & np.all(m >= 0, axis=1))
+    wi, wo, m = wi[keep], wo[keep], m[keep]
+    p = {k: jnp.asarray(np.asarray(v, float)) for k, v in params.items()}
+    f = np.concatenate([np.asarray(model.fn(p, jnp.asarray(wi[i:i + 262144]),
+                                            jnp.asarray(wo[i:i + 262144])), float)
+                        for i in range(0, len(wi), 262144)])
+    ci = wi[:, 2:3]
+    return float(np.sqrt(np.mean((np.log1p(f * ci) - np.log1p(m * ci)) ** 2)))
 
 
 def main():
@@ -96,6 +122,7 @@ def main():
     ap.add_argument("--names", default=None)
     ap.add_argument("--cache", type=Path, default=None)
     ap.add_argument("--csv", default=None)
+    ap.add_argument("--cutoff", type=float, default=None)
     args = ap.parse_args()
     render = load_render()
     names = (args.names.split(",") if args.names else sorted(render.names())[: args.materials])
@@ -103,20 +130,30 @@ def main():
     print(f"brdffit from {Path(brdffit.__file__).parent}; {len(names)} materials x {models}",
           flush=True)
     rows = []
+    options = {} if args.cutoff is None else {"cutoff": args.cutoff}
+    out = open(args.csv, "w", newline="") if args.csv else None
+    writer = None
     for name in names:
         table = table_of(render, name, args.cache)
         floor = diffuse_floor(table)
         for m in models:
             model = brdffit.get_model(m)
             t = time.perf_counter()
-            res = brdffit.fit(table, m, throw=False)
+            res = brdffit.fit(table, m, throw=False, **options)
             dt = time.perf_counter() - t
             params = {k: np.asarray(v).tolist() for k, v in res.params.items()}
             row = {"material": name, "model": m, "time": dt, "success": bool(res.success),
                    "rmse_log": res.metrics["rmse_log"], "rmse_cosine": res.metrics["rmse_cosine"],
+                   "log_rms_80": log_rms_80(table, model, params),
                    "params": json.dumps(params), "floor": json.dumps(floor.tolist())}
             row.update(checks(model, params, bool(res.success), floor))
             rows.append(row)
+            if out is not None:
+                if writer is None:
+                    writer = csv.DictWriter(out, fieldnames=list(row))
+                    writer.writeheader()
+                writer.writerow(row)
+                out.flush()
             flags = [c for c in CHECKS if row[c]]
             print(f"{name:28s} {m:20s} {dt:6.2f} s  rmse_log {row['rmse_log']:.4f}  "
                   f"{' '.join(flags) or 'plausible'}", flush=True)
@@ -125,18 +162,17 @@ def main():
         mine = [r for r in rows if r["model"] == m]
         warm = [r["time"] for r in mine[1:]] or [mine[0]["time"]]
         logs = [r["rmse_log"] for r in mine]
+        l80 = [r["log_rms_80"] for r in mine]
         coss = [r["rmse_cosine"] for r in mine]
         counts = "  ".join(f"{c} {sum(r[c] for r in mine)}" for c in CHECKS)
         bad = sum(any(r[c] for c in CHECKS) for r in mine)
         print(f"{m:20s} implausible {bad}/{len(mine)}: {counts}\n{'':20s} rmse_log median "
               f"{statistics.median(logs):.4f} worst {max(logs):.4f}; rmse_cosine median "
-              f"{statistics.median(coss):.4g} worst {max(coss):.4g}; warm median "
+              f"{statistics.median(coss):.4g} worst {max(coss):.4g}; log_rms_80 median "
+              f"{statistics.median(l80):.4f} worst {max(l80):.4f}; warm median "
               f"{statistics.median(warm):.2f} s, cold {mine[0]['time']:.2f} s")
-    if args.csv:
-        with open(args.csv, "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
+    if out is not None:
+        out.close()
 
 
 if __name__ == "__main__":
