@@ -45,7 +45,8 @@ MAX_NDIM = 16
 #: The header (magic to the last field's shape) may be at most this long.
 MAX_HEADER_BYTES = 1 << 20
 #: Largest file the reader accepts, 1 GiB (RGL files are a few MB, spectral ones up to a few
-#: hundred; an evaluation keeps float64 copies of the tables, about twice the file).
+#: hundred). What a format makes of the arrays is the format's to bound: an RGL evaluation's
+#: warps take up to about 10 times the bytes of the ``vndf`` table while they are built.
 MAX_FILE_BYTES = 1 << 30
 _PREFIX = struct.Struct("<12sBBI")
 

@@ -17,7 +17,10 @@ the constructor of ``src/bsdfs/measured.cpp`` (Mitsuba 3), all float32 unless sa
 
 Beyond Mitsuba's structural checks the reader requires finite values, increasing nodes, a
 non-negative ``ndf`` and ``vndf`` with mass in every slice and a positive ``sigma`` (what the
-evaluation divides by), so that a file it accepts evaluates to finite values everywhere.
+evaluation divides by), so that a file it accepts evaluates to finite values everywhere; and a
+measurement pattern (``n_φ x n_θ x n x n`` direction pairs, what a fit reads) of at most
+:data:`MAX_PATTERN_PAIRS`, because the pattern and its weights take about 350 bytes a pair,
+some 20 times the bytes a pair takes in the file (RGL's own files have well under a million).
 """
 
 from __future__ import annotations
@@ -29,9 +32,11 @@ import numpy as np
 from ..tensorfile import TensorFileError, read_tensor_file, write_tensor_file
 from ._material import RGLMaterial
 
-__all__ = ["RGLFormatError", "read_rgl", "write_rgl"]
+__all__ = ["RGLFormatError", "read_rgl", "write_rgl", "MAX_PATTERN_PAIRS"]
 
 _FIX = "the file is not an RGL material (.bsdf) or is corrupt"
+#: Most direction pairs a file's measurement pattern may have (``n_φ n_θ n²``; module docstring).
+MAX_PATTERN_PAIRS = 1 << 22
 
 
 class RGLFormatError(TensorFileError):
@@ -95,6 +100,11 @@ def _validate(path, f):
         raise RGLFormatError(path, f"the vndf and luminance tables must be at least 2 x 2, "
                              f"found {vndf.shape[2:]} and {lum.shape[2:]}; {_FIX}")
     n = lum.shape[2]
+    pairs = npf * nt * n * n
+    if pairs > MAX_PATTERN_PAIRS:
+        raise RGLFormatError(path, f"the measurement pattern has {pairs:,} direction pairs "
+                             f"({npf} phi_i x {nt} theta_i slices x {n} x {n} nodes), more than "
+                             f"the reader's limit of {MAX_PATTERN_PAIRS:,}; {_FIX}")
     if "wavelengths" in f:
         wl = _field(path, f, "wavelengths", 1)
         table_name = "spectra"

@@ -317,9 +317,9 @@ class RGLMaterial:
                                                      - (phi_i if self.isotropic else 0.0))], 1)
         u_m[:, 1] -= np.floor(u_m[:, 1])
         sample, _ = self._warps_geometry["vndf"].invert(u_m, [phi_i, theta_i])
-        t = np.abs(theta_i[:, None] - self.theta_i.astype(np.float64)).argmin(axis=1)
+        t = _nearest(self.theta_i.astype(np.float64), theta_i)
         p = (np.zeros(len(wi), np.int64) if self.isotropic else
-             np.abs(phi_i[:, None] - self.phi_i.astype(np.float64)).argmin(axis=1))
+             _nearest(self.phi_i.astype(np.float64), phi_i))
         k, j = (np.rint(np.clip(sample, 0, 1) * (n - 1)).astype(np.int64).T)
         return ((p * len(self.theta_i) + t) * n + j) * n + k
 
@@ -410,6 +410,16 @@ class RGLMaterial:
         weight = self.pair_weights(wi, wm, pts, valid, count=count) if weights else None
         return SampleSet(wi=wi, wo=wo, rgb=value, valid=valid, name=self.name, path=self.path,
                          weight=weight)
+
+
+def _nearest(nodes, x):
+    """Index of the node nearest each ``x`` (``nodes`` increasing; the lower one on a tie), by
+    binary search: memory ``O(len(x))``, whatever the number of nodes."""
+    i = np.clip(np.searchsorted(nodes, x, side="left"), 1, max(len(nodes) - 1, 1))
+    if len(nodes) == 1:
+        return np.zeros(len(x), np.int64)
+    lower = np.abs(x - nodes[i - 1]) <= np.abs(nodes[i] - x)
+    return np.where(lower, i - 1, i).astype(np.int64)
 
 
 def _incidence_cells(theta_i, phi_i, isotropic):
