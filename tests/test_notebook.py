@@ -1,6 +1,7 @@
 """``examples/fitting.ipynb`` runs end to end (nbclient, a fresh kernel), so the API it shows
 cannot rot: the HTML and text reports, the comparison of the models, the figures of
-``result.plot()`` and ``post.corner()`` shown inline, the files it saves. About 40-60 s: a small table, two fits, a short posterior."""
+``result.plot()`` and ``post.corner()`` shown inline, the files it saves. About 40-60 s: a
+small table, two fits, a short posterior."""
 
 import shutil
 from pathlib import Path
