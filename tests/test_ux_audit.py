@@ -1,7 +1,9 @@
 """What the notebook and command-line tests take for granted, checked: the tests that press
-Ctrl-C on a command they start see a terminal's Ctrl-C however the suite was launched, and a
-fit's progress bar moves while the fit runs (not all at once when it ends)."""
+Ctrl-C on a command they start see a terminal's Ctrl-C however the suite was launched, a
+fit's progress bar moves while the fit runs (not all at once when it ends), and the summary's
+first line reads as English."""
 
+import dataclasses
 import os
 import signal
 import subprocess
@@ -57,3 +59,11 @@ def test_a_fits_step_events_arrive_between_its_compiled_rounds(tmp_path, monkeyp
     assert result.steps > stages.ROUND_STEPS, result.steps
     assert len(rounds) > 1 and seen[0] < len(rounds), (seen, len(rounds))
     assert len(set(seen)) > 1 and seen == sorted(seen)
+
+
+def test_the_summary_counts_one_step_in_the_singular(tmp_path):
+    """``converged in 1 steps`` (the report said ``1 step``)."""
+    result = brdffit.fit(write_sample_list(tmp_path / "gold.csv", n=300), "ggx")
+    for steps, said in ((1, "in 1 step,"), (2, "in 2 steps,")):
+        head = dataclasses.replace(result, steps=steps).summary().splitlines()[0]
+        assert said in head, head
