@@ -8,6 +8,12 @@ it at a private temporary folder, set before anything runs, so that the subproce
 workers the tests start (which inherit the environment) use it too, and pytest-xdist's workers
 share the controller's; it is removed when the process that made it ends.
 (tests/test_compilation_cache.py removes the variable in its own subprocesses.)
+
+The tests that press Ctrl-C on a command they start (SIGINT to its process group) test a
+terminal's Ctrl-C. A pytest started as a background job of a script or under ``nohup`` inherits
+SIGINT ignored, its children would inherit that too, and a program keeps an inherited ignored
+SIGINT ignored (brdffit does: ``brdffit.cli._signals``), so they would never see the signal: the
+suite gives itself, and so its children, a terminal's SIGINT.
 """
 
 import atexit
@@ -15,6 +21,7 @@ import ctypes
 import gc
 import os
 import shutil
+import signal
 import tempfile
 
 import jax
@@ -26,6 +33,9 @@ if not os.environ.get("BRDFFIT_COMPILATION_CACHE_DIR"):
     atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
 
 jax.config.update("jax_enable_x64", True)
+
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _status_kib(key: str) -> int:

@@ -1,6 +1,7 @@
 """``examples/fitting.ipynb`` runs end to end (nbclient, a fresh kernel), so the API it shows
-cannot rot: the HTML and text reports, the figures of ``result.plot()`` and ``post.corner()``
-shown inline, the files it saves. About 40-60 s: a small table, two fits, a short posterior."""
+cannot rot: the HTML and text reports, the comparison of the models, the figures of
+``result.plot()`` and ``post.corner()`` shown inline, the files it saves. About 40-60 s: a
+small table, two fits, a short posterior."""
 
 import shutil
 from pathlib import Path
@@ -25,6 +26,9 @@ def test_the_example_notebook_runs_and_shows_its_results(tmp_path):
     for part in ("initial", "AIC", "correlation", "rmse_log", "same data only"):
         assert part in report, part
     assert any("brdffit-posterior" in h for h in html)
+    # the comparison of the models: a row per model, the metrics and AIC/BIC side by side
+    assert any(all(f">{part}<" in h for part in ("ggx", "beckmann", "rmse_log", "aic", "bic"))
+               for h in html), "no comparison of the models among the cell outputs"
     text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
     assert "[[Variables]]" in text and "[[Correlations]]" in text  # result.report()
     # result.plot() and post.corner() return figures that show inline as the cell's value

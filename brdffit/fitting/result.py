@@ -180,7 +180,8 @@ class FitResult:
         with their caveat."""
         head = (
             f"{self.model_name} fit of {self.table or 'table'} ({self.loss} loss, {self.solver}): "
-            f"{'converged' if self.success else 'FAILED'} in {self.steps} steps, "
+            f"{'converged' if self.success else 'FAILED'} in {self.steps} "
+            f"step{'' if self.steps == 1 else 's'}, "
             f"{self.wall_time:.2f} s, {self.n_cells} cells"
         )
         lines = [head] + ([f"  message: {self.message}"] if self.message else [])
