@@ -65,5 +65,32 @@ def test_the_summary_counts_one_step_in_the_singular(tmp_path):
     """``converged in 1 steps`` (the report said ``1 step``)."""
     result = brdffit.fit(write_sample_list(tmp_path / "gold.csv", n=300), "ggx")
     for steps, said in ((1, "in 1 step,"), (2, "in 2 steps,")):
-        head = dataclasses.replace(result, steps=steps).summary().splitlines()[0]
+        head = dataclasses.replace(result, steps=steps, total_steps=steps).summary().splitlines()[0]
         assert said in head, head
+
+
+# -- every solver step counted, as lmfit's nfev ---------------------------------------------------
+def test_the_result_counts_every_solver_step_as_the_bar_does(tmp_path):
+    """``steps`` is the last stage's; ``total_steps`` every solver step of the fit (the start
+    scan's candidates, the starts, a refined model's simpler fit): what a progress bar counts
+    and lmfit's ``nfev`` reports. Before, the report said "3 steps" where the bar said 35."""
+    path = write_sample_list(tmp_path / "gold.csv", n=300)
+    for model in ("ggx", "two-lobe-ggx"):  # two-lobe-ggx fits ggx first (Model.refines)
+        events = []
+        result = brdffit.fit(path, model, multistart=1,
+                             progress=lambda e, info: events.append(e))
+        stepped = sum(e.endswith("step") for e in events)
+        assert result.total_steps == stepped > result.steps, (model, result.total_steps, stepped)
+        assert (model == "two-lobe-ggx") == any(e.startswith("base-") for e in events)
+        assert f"{result.total_steps} solver steps in all" in result.report()
+        assert f"({result.total_steps} in all stages)" in result.summary().splitlines()[0]
+        back = brdffit.FitResult.from_json(result.to_json())
+        assert back.total_steps == result.total_steps
+    # a silent fit counts the same steps (the count does not need a callback)
+    assert brdffit.fit(path, "two-lobe-ggx", multistart=1).total_steps == result.total_steps
+    # a result written before the count reads as 0, and its report says nothing about it
+    import json
+    old = json.loads(result.to_json())
+    del old["total_steps"]
+    legacy = brdffit.FitResult.from_json(json.dumps(old))
+    assert legacy.total_steps == 0 and "in all" not in legacy.report()

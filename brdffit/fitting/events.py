@@ -29,6 +29,9 @@ class Events:
         self.stage = None  # None, or a solve on a subset of the cells ("warm", "scan")
         self.floor = 0.0  # the constant the solver's cost carries (Problem.cost_floor)
         self.prefix = ""  # "base-" while the simpler model of a refined fit runs
+        #: every solver step of the fit so far, in every solve (scan candidates, warm stages,
+        #: starts, a refined model's simpler fit), counted with or without a callback
+        self.solver_steps = 0
 
     def emit(self, event: str, **info) -> None:
         if self.callback is not None:
@@ -56,7 +59,8 @@ class Events:
     def steps(self, first: int, solved) -> None:
         """One step event per step of a solve that returned (a :class:`.solve.Solved`: its
         ``costs``, the solver's cost after each step, floor included), numbered from
-        ``first``."""
+        ``first``; every solve's steps count in :attr:`solver_steps`."""
+        self.solver_steps += int(solved.steps)
         if self.callback is None:
             return
         name = "step" if self.stage is None else f"{self.stage}-step"

@@ -274,6 +274,7 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
         timings={"prepare": t1 - t0, "solve": t2 - t1, "finish": t3 - t2},
         table=prep.name, covariance=s.covariance, optimality=float(best.omega),
         not_identified=[names[free[i]] for i in np.flatnonzero(lost) if best.finite],
+        total_steps=int(events.solver_steps),
     )
     result.plausibility = verdict_record(assess(model, result.params, result.metrics,
                                                 result.loss))

@@ -2,9 +2,9 @@ r"""A fit's report, as lmfit's ``fit_report``: :func:`fit_report` (text) and :fu
 (what a notebook shows for a :class:`~brdffit.fitting.FitResult`).
 
 Both give the verdict, every scalar with its value ± standard error, start value, bounds and
-status, the fit statistics (cost, χ², reduced χ², steps, starts, optimality, time), the error
-metrics with their meanings (:mod:`brdffit.metrics`), the strongest correlations
-(:attr:`FitResult.correlation`) and the information criteria of :func:`information_criteria`:
+status, the fit statistics (cost, χ², reduced χ², the steps of the last stage and the solver
+steps in all, lmfit's ``nfev``; starts, optimality, time), the error metrics with their
+meanings (:mod:`brdffit.metrics`), the strongest correlations (:attr:`FitResult.correlation`) and the information criteria of :func:`information_criteria`:
 
 .. math::
 
@@ -102,8 +102,11 @@ def _verdict(result) -> str:
     word = "converged" if result.success else "FAILED"
     starts = len(result.starts)
     steps = f"{result.steps} step" + ("" if result.steps == 1 else "s")
+    total = getattr(result, "total_steps", 0)
     return (f"{word} ({result.status}) in {steps}"
-            + (f", best of {starts} starts" if starts > 1 else ""))
+            + (f", best of {starts} starts" if starts > 1 else "")
+            + (f"; {total} solver step{'' if total == 1 else 's'} in all (nfev: every "
+               f"evaluation of the residuals and their Jacobian, all stages)" if total else ""))
 
 
 def _statistics(result) -> list[tuple[str, str]]:

@@ -95,7 +95,8 @@ class FitResult:
             stillness test, :func:`brdffit.fitting.stages.still`; ``"degenerate"`` when the data
             determine nothing, ``"implausible"`` for data beyond any physical reflectance:
             :mod:`brdffit.fitting.outcome`).
-        steps: solver steps of the best start. starts: cost of each start (multi-start).
+        steps: solver steps of the best start's last stage (on all the cells). starts: cost of
+            each start (multi-start).
         loss, solver: what was used. n_cells: cells used; n_total: cells in the input.
         init: the starting parameters of the best start. wall_time: seconds for the whole call;
         timings: a breakdown (``prepare``, ``solve``, ``finish``), seconds.
@@ -115,6 +116,11 @@ class FitResult:
             (:func:`brdffit.fitting.plausibility.verdict_record`): ``plausible`` and the
             ``checks`` (name, passed, value, limit, meaning); empty for a result read from a
             file older than the verdict. Independent of ``success``.
+        total_steps: every solver step the fit took, each one evaluation of the residuals and
+            their Jacobian (lmfit's ``nfev``; a progress bar counts the same steps): the start
+            scan's candidates, the warm stages on a subset of the cells, every start, and for a
+            refined model (``Model.refines``) the simpler model's fit. 0 for a result from a
+            file older than the count.
     """
 
     model_name: str
@@ -146,6 +152,7 @@ class FitResult:
     provenance: dict = dataclasses.field(default_factory=dict)
     not_identified: list = dataclasses.field(default_factory=list)
     plausibility: dict = dataclasses.field(default_factory=dict)
+    total_steps: int = 0
 
     # -- evaluation -----------------------------------------------------------------------------
     @property
@@ -181,8 +188,9 @@ class FitResult:
         head = (
             f"{self.model_name} fit of {self.table or 'table'} ({self.loss} loss, {self.solver}): "
             f"{'converged' if self.success else 'FAILED'} in {self.steps} "
-            f"step{'' if self.steps == 1 else 's'}, "
-            f"{self.wall_time:.2f} s, {self.n_cells} cells"
+            f"step{'' if self.steps == 1 else 's'}"
+            + (f" ({self.total_steps} in all stages)" if self.total_steps > self.steps else "")
+            + f", {self.wall_time:.2f} s, {self.n_cells} cells"
         )
         lines = [head] + ([f"  message: {self.message}"] if self.message else [])
         flat_x = dict(zip(self.names, np.asarray(self.x, float)))

@@ -284,7 +284,7 @@ FIELDS = {
     "solver": _text, "n_cells": _count, "n_total": _count, "init": _mapping(_value),
     "wall_time": _real, "timings": _mapping(_real), "table": _text, "covariance": _text,
     "optimality": _real, "provenance": _provenance, "not_identified": _names,
-    "plausibility": _plausibility,
+    "plausibility": _plausibility, "total_steps": _count,
 }
 #: Keys a result may carry beyond its fields (skipped): the posterior of ``--mcmc``;
 #: ``uncertainty``, derived from the fields (:meth:`FitResult.uncertainty`); ``derived``,
