@@ -47,3 +47,24 @@ def test_sample_posterior_checks_the_mcmc_ranges_before_reading(key, tmp_path):
     want = "a sample count" if key == "subsample" else option.want
     with pytest.raises(ConfigError, match=f"'{key}' must be " + re.escape(want)):
         sample_posterior(tmp_path / "never-read.csv", "ggx", **{key: value})
+
+
+@pytest.mark.parametrize("command, kind, where", [
+    ("fit", "RGL material", r"FIG-polar\.png for a {}"),  # the polar figure of such an input
+    ("plot", "RGL material", r"polar coordinates, for a {}"),
+    ("synth", "sample list", r"direction pairs for a {} output"),  # --samples
+    ("synth", "RGL material", r"RGL material format \({},"),
+])
+def test_help_texts_name_a_kinds_suffixes_from_the_registry(command, kind, where, monkeypatch,
+                                                            capsys):
+    """A suffix added to :data:`brdffit.io.READERS` for a kind appears wherever a help text
+    names that kind's files, not only in the list of every format."""
+    from brdffit.cli import main
+    from brdffit.io import READERS
+
+    reader = next(entry for entry in READERS.values() if entry[0] == kind)
+    suffixes = "/".join([s for s, entry in READERS.items() if entry[0] == kind] + [".toykind"])
+    monkeypatch.setitem(READERS, ".toykind", reader)
+    assert main([command, "--help"]) == 0
+    text = " ".join(re.sub(r"-\n\s*", "-", capsys.readouterr().out).split())  # argparse's wrap
+    assert re.search(where.format(re.escape(suffixes)), text), text
