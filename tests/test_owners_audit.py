@@ -68,3 +68,42 @@ def test_help_texts_name_a_kinds_suffixes_from_the_registry(command, kind, where
     assert main([command, "--help"]) == 0
     text = " ".join(re.sub(r"-\n\s*", "-", capsys.readouterr().out).split())  # argparse's wrap
     assert re.search(where.format(re.escape(suffixes)), text), text
+
+
+@pytest.mark.parametrize("options, error, words", [
+    ({"cutoff": 500.0}, ConfigError, r"'cutoff' must be degrees in \(0, 90\]"),
+    ({"max_step": 5}, TypeError, "unknown option.*max_step"),
+    ({"options": {"multistart": -1}}, ConfigError, "'multistart' must be an integer"),
+])
+def test_fit_many_checks_its_options_before_any_work(options, error, words, monkeypatch,
+                                                     tmp_path):
+    """``fit_many`` takes the options as :func:`brdffit.fit` does (a ``FitOptions`` or a
+    mapping as ``options``, and keywords) and refuses a wrong one before it starts a cluster,
+    instead of a failed row per job."""
+    import brdffit
+    from brdffit.batch import runner
+
+    def started(*args, **kwargs):
+        raise AssertionError("the batch started")
+
+    monkeypatch.setattr(runner, "run_batch", started)
+    table = tmp_path / "m.csv"
+    table.write_text("theta_i,phi_i,theta_o,phi_o,r,g,b\n10,0,10,180,0.5,0.5,0.5\n")
+    with pytest.raises(error, match=words):
+        brdffit.fit_many([table], "ggx", **options)
+
+
+def test_fit_many_hands_the_jobs_a_preset_as_checked_options(monkeypatch, tmp_path):
+    import brdffit
+    from brdffit.batch import runner
+    from brdffit.config import FitOptions
+
+    seen = []
+    monkeypatch.setattr(runner, "run_batch", lambda jobs, **kwargs: seen.extend(jobs) or
+                        type("Out", (), {"frame": None, "results": None})())
+    table = tmp_path / "m.csv"
+    table.write_text("theta_i,phi_i,theta_o,phi_o,r,g,b\n10,0,10,180,0.5,0.5,0.5\n")
+    brdffit.fit_many([table], "ggx", options=FitOptions(cutoff=70.0, covariance="GN"),
+                     max_steps=9)
+    assert [job.fit_kwargs for job in seen] == [{"cutoff": 70.0, "covariance": "gn",
+                                                "max_steps": 9}]
