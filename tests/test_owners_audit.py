@@ -107,3 +107,19 @@ def test_fit_many_hands_the_jobs_a_preset_as_checked_options(monkeypatch, tmp_pa
                      max_steps=9)
     assert [job.fit_kwargs for job in seen] == [{"cutoff": 70.0, "covariance": "gn",
                                                 "max_steps": 9}]
+
+
+def test_asking_for_a_model_variant_leaves_the_registry_as_it_was():
+    """A variant a factory builds by name (Mitsuba's ``roughconductor`` options) is the same
+    object every time and is not added to the registry: what :func:`available_models` lists
+    does not depend on what the process asked for before."""
+    import brdffit
+
+    before = brdffit.available_models()
+    name = "mitsuba-roughconductor-beckmann-aniso-tint"
+    assert name not in before
+    model = brdffit.get_model(name)
+    assert model.name == name and brdffit.get_model(name.upper()) is model
+    assert brdffit.available_models() == before
+    assert brdffit.get_model("mitsuba-roughconductor") is brdffit.get_model(
+        "mitsuba-roughconductor")
