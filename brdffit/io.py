@@ -2,8 +2,8 @@
 
 :data:`READERS` maps each input suffix to what it holds and its reader; everything that names
 the input formats takes them from here: :func:`read_path` (``brdffit.fit``, the command line,
-``brdffit batch``), the help texts and messages (:func:`formats_text`, :func:`suffixes_text`),
-and the tests, which are parametrized over it. A new format is one entry here.
+``brdffit batch``), the help texts and messages (:func:`formats_text`, :func:`suffixes_text`,
+:func:`suffixes_of`), and the tests, which are parametrized over it. A new format is one entry here.
 
 ===========  ==============  ==============================================
 suffix       holds           reader
@@ -71,6 +71,12 @@ def suffixes_text(conjunction: str = "or") -> str:
     """The input suffixes as prose: ``".binary, .csv, .npz or .bsdf"``."""
     names = list(READERS)
     return ", ".join(names[:-1]) + f" {conjunction} {names[-1]}" if len(names) > 1 else names[0]
+
+
+def suffixes_of(*kinds: str) -> str:
+    """The suffixes of the files holding any of ``kinds``, for a help text:
+    ``suffixes_of("sample list")`` is ``".csv/.npz"``."""
+    return "/".join(suffix for suffix, kind in INPUT_SUFFIXES.items() if kind in kinds)
 
 
 def formats_text() -> str:

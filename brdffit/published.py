@@ -166,7 +166,7 @@ def load_published(path, material: str | None = None) -> list[PublishedResult]:
         fits = [fit for fit in fits if material is None or fit.material == material]
         try:
             out.extend(result_of(fit, path=f, sha256=digest) for fit in fits)
-        except UnknownNameError as exc:
+        except UnknownNameError:
             if not folder:
                 raise
             skipped.append(f"{f.name} ({fits[0].model if fits else '?'})")

@@ -584,14 +584,21 @@ def fit_many(paths_or_tables, models, *, client=None, outdir=None, force: bool =
         return_results: also return the :class:`~brdffit.FitResult` of each row (None where a
             job failed): ``(frame, results)``.
         progress: a progress bar on stderr (``None``: when stderr is a terminal).
-        **fit_options: keywords of :func:`brdffit.fit`, applied to every job (``throw`` is
+        **fit_options: keywords of :func:`brdffit.fit`, applied to every job: ``options``
+            (a :class:`~brdffit.config.FitOptions`, a preset say) and the options by name,
+            checked here before any work as :func:`brdffit.fit` checks them (``throw`` is
             always False: a fit that does not converge is a row with ``success=False``).
 
     Rows follow the inputs, then the models; columns are those of :mod:`brdffit.batch.table`.
-    Failures never raise: a malformed input, a fit that cannot run, or a worker that dies is a
-    row with ``success=False`` and the reason in ``message``.
+    An option that is no option or out of its range raises (``TypeError``,
+    :class:`~brdffit.errors.ConfigError`, :class:`~brdffit.errors.UnknownNameError`) before any
+    work. Past that, failures never raise: a malformed input, a fit that cannot run, or a worker
+    that dies is a row with ``success=False`` and the reason in ``message``.
     """
+    from ..fitting import fit_options as checked
+
     fit_options.pop("throw", None)
+    fit_options = checked(fit_options.pop("options", None), **fit_options)
     names = [m.strip() for m in models.split(",")] if isinstance(models, str) else list(models)
     from ..models.registry import get_model
 

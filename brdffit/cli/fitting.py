@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 from ..errors import BrdffitError
-from ..io import formats_text
+from ..io import SELF_EVALUATING, formats_text, suffixes_of
 from ._words import cli_words
 from ._common import (
     Progress,
@@ -64,7 +64,8 @@ def add_parser(sub, parents) -> None:
     p.add_argument("--out", "-o", metavar="RESULT.json", help="write the result as JSON")
     p.add_argument("--plot", metavar="FIG.png",
                    help="write the diagnostic figures FIG-slice.png, FIG-peaks.png, "
-                   "FIG-albedo.png, FIG-spheres.png (FIG-polar.png for a .bsdf, "
+                   "FIG-albedo.png, FIG-spheres.png (FIG-polar.png for a "
+                   f"{suffixes_of(*SELF_EVALUATING)}, "
                    "FIG-corner.png with --mcmc)")
     p.add_argument("--table", metavar="FITTED.binary",
                    help="write the fitted model rendered over the MERL grid")

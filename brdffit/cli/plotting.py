@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import formats_text
+from ..io import SELF_EVALUATING, formats_text, suffixes_of
 from ._common import UsageError, check_outputs, read_input
 
 
@@ -35,7 +35,8 @@ def add_parser(sub, parents) -> None:
     add_model_option(p, "draw")
     p.add_argument("--output", "-o", required=True, metavar="FIG.png",
                    help="FIG.png → FIG-slice.png, FIG-peaks.png, FIG-albedo.png, FIG-spheres.png "
-                   "(and FIG-polar.png, the lobe in polar coordinates, for a .bsdf); an "
+                   f"(and FIG-polar.png, the lobe in polar coordinates, for a "
+                   f"{suffixes_of(*SELF_EVALUATING)}); an "
                    "existing folder receives slice.png, ...")
     p.add_argument("--force", action="store_true", help="overwrite existing figures")
     p.set_defaults(run=run)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import formats_text
+from ..io import formats_text, suffixes_of
 from ._common import UsageError, check_outputs, check_params, parse_assignments
 
 
@@ -29,10 +29,11 @@ def add_parser(sub, parents) -> None:
         allow_abbrev=False,
         help="write a synthetic table from a model and known parameters",
         description="Evaluate a registered model with known parameters over the MERL grid and "
-        "write it as a MERL table (.binary; cells below the horizon are missing, as in the real "
-        "database), over N random direction pairs (dense near the specular peak) as a sample "
-        "list (.csv/.npz, --samples), or as a virtual measurement in the RGL material format "
-        "(.bsdf, what Mitsuba 3's `measured` BSDF renders; anisotropic if the model is). "
+        f"write it as a MERL table ({suffixes_of('MERL table')}; cells below the horizon are "
+        "missing, as in the real database), over N random direction pairs (dense near the "
+        f"specular peak) as a sample list ({suffixes_of('sample list')}, --samples), or as a "
+        f"virtual measurement in the RGL material format ({suffixes_of('RGL material')}, what "
+        "Mitsuba 3's `measured` BSDF renders; anisotropic if the model is). "
         "--fit RESULT.json takes the model and parameters from a fit.",
     )
     p.add_argument("--model", "-m", help="a registered model (see `brdffit models`); with "
@@ -48,7 +49,8 @@ def add_parser(sub, parents) -> None:
                    "(0.02 = 2%%); negative results are clipped to 0")
     p.add_argument("--seed", type=int, default=0, help="random seed for noise and samples")
     p.add_argument("--samples", type=int, default=100_000, metavar="N",
-                   help="number of random direction pairs for a .csv/.npz output (default 100000)")
+                   help="number of random direction pairs for a "
+                   f"{suffixes_of('sample list')} output (default 100000)")
     p.add_argument("--output", "-o", required=True, metavar="OUT",
                    help=f"output file: {formats_text()}")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")

@@ -142,14 +142,15 @@ class Settings:
 
     @classmethod
     def of(cls, given: Mapping) -> Settings:
-        """From the output of :func:`fit_options`, over :data:`FIT_DEFAULTS`."""
+        """From the output of :func:`fit_options`, over :data:`FIT_DEFAULTS`: every option
+        passes through by its name, the ones resolved here replaced. A field of
+        :class:`~brdffit.config.FitOptions` without a field here (or the reverse) is a
+        ``TypeError`` at the first fit, never an option silently dropped."""
         o = {**FIT_DEFAULTS, **given}
         precision = o["precision"] or default_precision()
         rtol, atol, ftol = tolerances(precision, o["rtol"], o["atol"], o["ftol"])
-        return cls(
-            loss=get_loss(o["loss"]), solver=o["solver"], init=o["init"], fixed=o["fixed"],
-            bounds=o["bounds"], cutoff=o["cutoff"], subsample=o["subsample"], seed=o["seed"],
-            multistart=int(o["multistart"]), max_steps=int(o["max_steps"]), rtol=rtol,
-            atol=atol, ftol=ftol, scan=bool(o["scan"]), precision=precision,
-            covariance=o["covariance"], weighting=o["weighting"],
-        )
+        return cls(**{
+            **o, "loss": get_loss(o["loss"]), "multistart": int(o["multistart"]),
+            "max_steps": int(o["max_steps"]), "rtol": rtol, "atol": atol, "ftol": ftol,
+            "scan": bool(o["scan"]), "precision": precision,
+        })

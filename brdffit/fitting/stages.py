@@ -18,7 +18,8 @@ the residual at the optimum is mostly model error and Gauss–Newton alone conve
 linearly. Each stage, and each round, starts with the trust region the previous one ended with
 (except after a round on the other model that accepted no step: :meth:`Run.solve`). The blocks
 are interleaved (:func:`.data.select`), so every leading subset is an even sample of the
-table. How the stages fit into a fit: ``docs/design/fitting.md`` ("The fit path").
+table. How the stages fit into a fit: ``docs/design/fitting.md`` ("The fit path, module by
+module").
 """
 
 from __future__ import annotations

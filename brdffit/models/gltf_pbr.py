@@ -57,8 +57,6 @@ from ..terms.ndf import GGX
 from .registry import Model, Param, register
 from .starts import gltf_pbr as gltf_pbr_start
 
-#: ``f0`` of the dielectric part at the core material's fixed ``ior = 1.5``.
-DIELECTRIC_F0 = 0.04
 #: The clear coat's fixed index of refraction (``KHR_materials_clearcoat``): ``f0 = 0.04``.
 CLEARCOAT_F0 = 0.04
 

@@ -31,6 +31,7 @@ canonical name (:func:`canonical_name`) when first built.
 
 from __future__ import annotations
 
+import functools
 from functools import partial
 
 import jax.numpy as jnp
@@ -99,7 +100,8 @@ def _roughconductor_fn(distribution: str, anisotropic: bool, fresnel: str):
 
 
 def roughconductor_model(distribution: str = "ggx", anisotropic: bool = False, fresnel: str = "ior") -> Model:
-    """The :class:`Model` of Mitsuba's ``roughconductor`` with these options (registered once).
+    """The :class:`Model` of Mitsuba's ``roughconductor`` with these options: the same object for
+    the same options (the registered one for the common option sets, registered at import).
 
     Args:
         distribution: ``"ggx"`` or ``"beckmann"`` (Mitsuba's ``distribution`` string).
@@ -114,9 +116,16 @@ def roughconductor_model(distribution: str = "ggx", anisotropic: bool = False, f
     name = canonical_name(distribution, anisotropic, fresnel)
     if name in available_models():
         return get_model(name)
+    return _variant(distribution, anisotropic, fresnel)
+
+
+@functools.lru_cache(maxsize=None)
+def _variant(distribution: str, anisotropic: bool, fresnel: str) -> Model:
+    """The :class:`Model` of one option set, made once (a memo: a call registers nothing)."""
+    name = canonical_name(distribution, anisotropic, fresnel)
     ndf = "GGX (RTR 9.53)" if distribution == "ggx" else "Beckmann (RTR 9.52), rational Smith G1 (RTR 9.39)"
     form = "complex-IOR conductor Fresnel" if fresnel == "ior" else "specular_reflectance tint, F = 1"
-    return register(Model(
+    return Model(
         name=name,
         description=f"Mitsuba 3 roughconductor: {'anisotropic ' if anisotropic else ''}{ndf}, "
         f"separable Smith G, {form}",
@@ -126,7 +135,7 @@ def roughconductor_model(distribution: str = "ggx", anisotropic: bool = False, f
         start=partial(rough_conductor, anisotropic=anisotropic, fresnel=fresnel),
         reference="Mitsuba 3 src/bsdfs/roughconductor.cpp, include/mitsuba/render/microfacet.h, "
         "fresnel.h (fresnel_conductor); RTR eqs. 9.27, 9.34",
-    ))
+    )
 
 
 def variant_of(name: str) -> dict | None:
@@ -139,14 +148,16 @@ def variant_of(name: str) -> dict | None:
     return None
 
 
-ROUGHCONDUCTOR = roughconductor_model("ggx", False, "ior")
-ROUGHCONDUCTOR_ANISO = roughconductor_model("ggx", True, "ior")
-ROUGHCONDUCTOR_BECKMANN = roughconductor_model("beckmann", False, "ior")
-ROUGHCONDUCTOR_TINT = roughconductor_model("ggx", False, "tint")
+ROUGHCONDUCTOR = register(roughconductor_model("ggx", False, "ior"))
+ROUGHCONDUCTOR_ANISO = register(roughconductor_model("ggx", True, "ior"))
+ROUGHCONDUCTOR_BECKMANN = register(roughconductor_model("beckmann", False, "ior"))
+ROUGHCONDUCTOR_TINT = register(roughconductor_model("ggx", False, "tint"))
 
 
 @register_factory
 def _by_name(name):
-    """Build the other option combinations on first use of their canonical name."""
+    """The other option combinations by their canonical name (built once, not registered:
+    :func:`~brdffit.models.registry.available_models` lists the same models before and
+    after)."""
     options = variant_of(name) if isinstance(name, str) else None
     return roughconductor_model(**options) if options else None

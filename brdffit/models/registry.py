@@ -266,14 +266,16 @@ def register(model: Model) -> Model:
     return model
 
 
-#: Functions ``name -> Model | None`` consulted by :func:`get_model` for a name not (yet)
+#: Functions ``name -> Model | None`` consulted by :func:`get_model` for a name not
 #: registered: a family of variants (e.g. Mitsuba's ``roughconductor`` options) registers the
-#: common ones at import and builds the others on first use by name.
+#: common ones at import and builds the others on first use by name, without registering them
+#: (so :func:`available_models` does not depend on what was asked for before).
 _FACTORIES: list[Callable] = []
 
 
 def register_factory(factory: Callable) -> Callable:
-    """Let ``factory(name)`` build (and register) models on demand; returns ``factory``."""
+    """Let ``factory(name)`` build models on demand (the same object for the same name; not
+    registered); returns ``factory``."""
     _FACTORIES.append(factory)
     return factory
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..io import is_table  # noqa: F401  (re-exported for the figures)
-from ..models.evaluate import CHUNK, evaluate_model  # noqa: F401  (re-exported for the figures)
+from ..models.evaluate import evaluate_model  # noqa: F401  (re-exported for the figures)
 
 
 _VIEW: list = []  # [(weak reference to the data, its samples)]: the last one made

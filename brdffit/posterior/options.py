@@ -2,8 +2,9 @@
 
 Each field's :class:`~brdffit.config.Option` (``metadata["option"]``) holds its default, range
 and ``brdffit fit --mcmc`` flag, as the fit's :class:`~brdffit.config.FitOptions` fields do: the
-command line's flags, their range checks (:data:`FLAG_RANGES`) and the flags its advice names
-come from there. A field without a flag is set from Python only (``seed`` is the fit's).
+command line's flags, the range checks of both the flags (:data:`FLAG_RANGES`) and
+:func:`~brdffit.posterior.sample_posterior`'s options (:data:`RANGES`), and the flags its advice
+names come from there. A field without a flag is set from Python only (``seed`` is the fit's).
 The chain holds ``walkers * steps * parameters`` doubles: 10^4 x 10^5 x 10 would be 80 GB, so
 the command line also bounds the product (:data:`MAX_CHAIN_VALUES`).
 """
@@ -69,7 +70,9 @@ class McmcOptions:
 MCMC_OPTIONS = {f.name: f.metadata["option"] for f in dataclasses.fields(McmcOptions)}
 #: The options with a ``brdffit fit`` flag: the flag's argparse name -> the option's name.
 FLAG_KEYS = {o.flag[2:].replace("-", "_"): key for key, o in MCMC_OPTIONS.items() if o.flag}
-#: The flags' ranges, keyed by argparse name, for :func:`brdffit.config.check_fit_options`.
-FLAG_RANGES = {dest: (o.kind is int, o.low, o.high, o.low_in, o.want)
-               for dest, o in ((d, MCMC_OPTIONS[k]) for d, k in FLAG_KEYS.items())
-               if o.high is not None}
+#: The ranges of the sampler's numeric options, keyed by option name, for
+#: :func:`brdffit.config.check_fit_options` (``sample_posterior`` checks its options with them).
+RANGES = {key: (o.kind is int, o.low, o.high, o.low_in, o.want)
+          for key, o in MCMC_OPTIONS.items() if o.high is not None}
+#: The same ranges keyed by the flags' argparse names (``brdffit fit --walkers`` ...).
+FLAG_RANGES = {dest: RANGES[key] for dest, key in FLAG_KEYS.items() if key in RANGES}

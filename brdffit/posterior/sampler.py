@@ -44,6 +44,7 @@ from .likelihood import (
 )
 from .priors import build_prior
 from .from_fit import loss_of, problem_from
+from .options import RANGES as MCMC_RANGES
 from .options import McmcOptions
 from .result import PERCENTILES, PosteriorResult
 
@@ -332,6 +333,7 @@ def sample_posterior(table, result_or_model, options=None, mcmc: McmcOptions | N
     from ..progress import resolve
 
     fit, mcmc = _split_options(options, mcmc, kwargs)
+    check_fit_options({key: getattr(mcmc, key) for key in MCMC_RANGES}, ranges=MCMC_RANGES)
     if isinstance(result_or_model, FitResult):  # no fit here to check the fit options
         check_fit_options(fit.fit_kwargs())
     table, _path = load(table)
