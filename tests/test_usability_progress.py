@@ -203,6 +203,44 @@ for w in caught:
 """
 
 
+_KERNEL_WITH_WIDGETS = """
+import io, sys, types, warnings
+import IPython
+IPython.get_ipython = lambda: types.SimpleNamespace()
+sys.modules.setdefault("ipykernel.zmqshell", types.ModuleType("ipykernel.zmqshell"))  # a kernel
+from brdffit.progress import Bar
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    bar = Bar("fit", file=io.StringIO())
+    bar("setup", {"model": "ggx", "n_cells": 10, "n_free": 7})
+    widget = bar.bar
+    moved = []
+    for k in range(5):
+        bar("step", {"step": k, "cost": 1.0})
+        moved.append(widget.n)
+    bar("done", {"success": True, "cost": 1.0})
+print("WIDGET", type(widget.container).__name__, moved, widget.total)
+for w in caught:
+    print(w.category.__name__, str(w.message))
+"""
+
+
+def test_a_kernel_with_the_notebook_extra_draws_a_widget_that_moves_with_the_steps():
+    """With ``brdffit[notebook]`` installed, ``progress=True`` in Jupyter is tqdm's widget
+    (an ipywidgets box), advanced by every solver step and full at the end, without a warning."""
+    import os
+    import subprocess
+
+    pytest.importorskip("ipywidgets")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    run = subprocess.run([sys.executable, "-c", _KERNEL_WITH_WIDGETS], capture_output=True,
+                         text=True, env=env, timeout=120)
+    assert run.returncode == 0, run.stderr
+    line = next(x for x in run.stdout.splitlines() if x.startswith("WIDGET"))
+    assert line == "WIDGET TqdmHBox [1, 2, 3, 4, 5] 5", run.stdout
+    assert "Warning" not in run.stdout.split(line)[1], run.stdout
+
+
 def test_a_kernel_without_ipywidgets_is_told_which_extra_to_install():
     """Before: tqdm's own "IProgress not found. Please update jupyter and ipywidgets" warning;
     now one that names ``brdffit[notebook]`` (the bar still works, as text)."""
