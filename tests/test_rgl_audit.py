@@ -159,3 +159,21 @@ def test_two_identical_phi_slices_render_as_mitsuba_evaluates_them(tmp_path):
         mine = mat.eval(wi, wo)
         assert np.any(mine > 0)
         np.testing.assert_allclose(mine, mitsuba_eval(path, wi, wo), rtol=1e-4, atol=1e-6)
+
+
+def test_a_material_keeps_its_pattern_and_the_figures_keep_nothing(tmp_path):
+    """The figures of one material share its measurement pattern, kept by the material itself
+    (``to_samples()`` with its defaults is made once); the figures' module keeps no state of
+    its own (it kept the last material's pattern in a module-level list)."""
+    import brdffit.plots._eval as view
+
+    path = tmp_path / "m.bsdf"
+    write_tensor_file(path, _fields(n_theta=3))
+    material = read_rgl(path)
+    first = view.sample_view(material)
+    assert view.sample_view(material) is first is material.to_samples()
+    other = material.to_samples(count=1 << 12)  # any other call is made afresh
+    assert other is not first and len(other) == len(first)
+    np.testing.assert_array_equal(other.wi, first.wi)
+    assert not [k for k, v in vars(view).items() if isinstance(v, (list, dict, set))
+                and not k.startswith("__")]

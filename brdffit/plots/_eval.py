@@ -26,25 +26,13 @@ from ..io import is_table  # noqa: F401  (re-exported for the figures)
 from ..models.evaluate import evaluate_model  # noqa: F401  (re-exported for the figures)
 
 
-_VIEW: list = []  # [(weak reference to the data, its samples)]: the last one made
-
-
 def sample_view(data):
     """The measured points that the binned figures read: a table or a sample set as it is, any
     other measurement (an RGL material) as its ``to_samples()`` (the file's own measurement
-    pattern), made once for the figures of one material (the last one is kept)."""
-    import weakref
-
+    pattern; a material makes it once and keeps it, so the figures of one material share it)."""
     if is_table(data) or (hasattr(data, "wi") and hasattr(data, "wo")):
         return data
-    if _VIEW and _VIEW[0][0]() is data:
-        return _VIEW[0][1]
-    samples = data.to_samples()
-    try:
-        _VIEW[:] = [(weakref.ref(data), samples)]
-    except TypeError:  # not weakly referable: not kept
-        _VIEW.clear()
-    return samples
+    return data.to_samples()
 
 
 def data_name(data, fallback: str = "measured") -> str:

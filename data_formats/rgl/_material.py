@@ -405,7 +405,21 @@ class RGLMaterial:
         many hits that estimate agrees with the count (median ratio 0.92-0.97 in the tests),
         but it is singular on the poles of the change of variables, where the cells are large.
         ``weights=False`` gives ``None``.
+
+        The default call (``weights=True``, ``count=None``: what a fit and the figures read) is
+        made once per material and kept by it (:attr:`_samples`; the material does not change
+        after it is read), so the several figures of one material share it.
         """
+        if weights and count is None:
+            return self._samples
+        return self._make_samples(weights, count)
+
+    @functools.cached_property
+    def _samples(self) -> SampleSet:
+        """:meth:`to_samples` with its defaults, made at its first call."""
+        return self._make_samples(True, None)
+
+    def _make_samples(self, weights: bool, count: int | None) -> SampleSet:
         wi, wo, wm, u_m, value, valid, pts = self.pattern()
         weight = self.pair_weights(wi, wm, pts, valid, count=count) if weights else None
         return SampleSet(wi=wi, wo=wo, rgb=value, valid=valid, name=self.name, path=self.path,
