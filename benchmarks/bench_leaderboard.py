@@ -68,18 +68,13 @@ MODELS = LITERATURE + HOUSE
 #: Published file stem → (the paper's protocol preset, the metric it minimises). The model is
 #: the one the file's line for the material names (Lafortune's lobe count varies per line).
 PROTOCOLS = {
-    "ngan_cooktorrance": ("ngan2005", "ngan_rms_80_sa"),
-    "ngan_ashikhminshirley": ("ngan2005", "ngan_rms_80_sa"),
-    "ngan_blinnphong": ("ngan2005", "ngan_rms_80_sa"),
-    "ngan_ward": ("ngan2005", "ngan_rms_80_sa"),
-    "ngan_wardduer": ("ngan2005", "ngan_rms_80_sa"),
-    "ngan_lafortune": ("ngan2005", "ngan_rms_80_sa"),
-    "low_cooktorrance_E1": ("low2012-e1", "cos_rms_sa"),
-    "low_ashikhminshirley_E1": ("low2012-e1", "cos_rms_sa"),
-    "low_cooktorrance_E2": ("low2012-e2", "log_rms_sa"),
-    "low_ashikhminshirley_E2": ("low2012-e2", "log_rms_sa"),
-    "low_lowsmooth_E2": ("low2012-e2", "log_rms_sa"),
-    "low_lowmicrofacet_E2": ("low2012-e2", "log_rms_sa"),
+    **dict.fromkeys(("ngan_cooktorrance", "ngan_ashikhminshirley", "ngan_blinnphong",
+                     "ngan_ward", "ngan_wardduer", "ngan_lafortune"),
+                    ("ngan2005", "ngan_rms_80_sa")),
+    **dict.fromkeys(("low_cooktorrance_E1", "low_ashikhminshirley_E1"),
+                    ("low2012-e1", "cos_rms_sa")),
+    **dict.fromkeys(("low_cooktorrance_E2", "low_ashikhminshirley_E2", "low_lowsmooth_E2",
+                     "low_lowmicrofacet_E2"), ("low2012-e2", "log_rms_sa")),
     "bagher_sgd": ("bagher2012", "ngan_rms_80_sa"),
 }
 FIELDS = ["material", "kind", "label", "model", "preset", "stem", "protocol_metric", "time",

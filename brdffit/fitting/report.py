@@ -102,7 +102,7 @@ def _verdict(result) -> str:
     word = "converged" if result.success else "FAILED"
     starts = len(result.starts)
     steps = f"{result.steps} step" + ("" if result.steps == 1 else "s")
-    total = getattr(result, "total_steps", 0)
+    total = result.total_steps
     return (f"{word} ({result.status}) in {steps}"
             + (f", best of {starts} starts" if starts > 1 else "")
             + (f"; {total} solver step{'' if total == 1 else 's'} in all (nfev: every "
