@@ -419,11 +419,16 @@ def _dense_reference(prob, u, data):
          {"base_color": False}),
     ],
 )
-def test_block_sums_match_dense_jacobian(model_name, free, x0, local):
-    prob = _problem(model_name, free, x0)
+@pytest.mark.parametrize("loss, batched", [("log", False), ("cosine-in", True),
+                                           ("linear+huber(0.05)", False), ("relative", True)])
+def test_block_sums_match_dense_jacobian(model_name, free, x0, local, loss, batched):
+    """Both programs of the field sums (per pair, and the batched Gram matrices that a
+    residual linear in the model takes) against the dense Jacobian."""
+    prob = _problem(model_name, free, x0, loss=loss)
+    assert prob.loss.linear_residual is batched
     for name, want in local.items():
         assert prob.model.param(name).per_channel is want, name
-    sel = select(ggx_samples(400), get_loss("log"))
+    sel = select(ggx_samples(400), get_loss(loss))
     u = jnp.asarray(RNG.uniform(0.1, 0.9, size=len(free)))  # box coordinates
     got = jax.jit(lambda p, v, d: p.block_sums(v, d))(prob, u, sel.data)
     want = _dense_reference(prob, u, sel.data)

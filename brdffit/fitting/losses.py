@@ -121,6 +121,7 @@ class Loss:
             residual, so the cost weight is ``w²``.
         huber: ``None`` or the Huber threshold ``δ`` in residual units.
         description: one line for humans.
+        linear: ``transform`` is linear in the prediction, ``g(f) = c(cosθi, cosθo) f``.
     """
 
     name: str
@@ -128,6 +129,13 @@ class Loss:
     weight: Callable = dataclasses.field(repr=False, default=_unit_weight)
     huber: float | None = None
     description: str = ""
+    linear: bool = False
+
+    @property
+    def linear_residual(self) -> bool:
+        """The residual is linear in the prediction (a linear ``transform``, no Huber): its
+        derivative is the model's times a constant per cell."""
+        return self.linear and self.huber is None
 
     def robust(self, delta: float) -> Loss:
         """The Huber variant of this loss with threshold ``delta`` (residual units)."""
@@ -148,7 +156,7 @@ class Loss:
 #: The losses by name: :data:`brdffit.config.LOSS_NAMES` names them, in this order (so that the
 #: command line's help lists them without importing JAX).
 LOSSES: dict[str, Loss] = {
-    name: Loss(name, transform, weight, description=description)
+    name: Loss(name, transform, weight, description=description, linear=transform is not _log)
     for name, (transform, weight, description) in zip(LOSS_NAMES, (
         (_identity, _unit_weight, "ρ̂ - ρ (unweighted)"),
         (_cosine, _unit_weight, "(ρ̂ - ρ) cosθi cosθo"),
