@@ -1,7 +1,7 @@
 """Benchmark: brdffit's models against the published fits of the 80 realistic materials (by hand).
 
     .venv/bin/python benchmarks/bench_leaderboard.py [--materials N | --names a,b]
-        [--cache DIR] [--shard K/N] --csv out.csv
+        [--cache DIR] [--shard K/N] [--models a,b] --csv out.csv
     .venv/bin/python benchmarks/bench_leaderboard.py --summarize out1.csv [out2.csv ...]
 
 For each realistic material (the neural proxies of ``../shared/realistic``, rendered as
@@ -88,6 +88,9 @@ def run(args) -> None:
     names = args.names.split(",") if args.names else render.names()[: args.materials]
     k, n = (int(v) for v in args.shard.split("/"))
     names = names[k - 1::n]
+    models = args.models.split(",")
+    if unknown := sorted(set(models) - set(MODELS)):
+        raise SystemExit(f"--models: not among the benchmark's models: {', '.join(unknown)}")
     reference = machine_reference()
     print(f"load average {os.getloadavg()[0]:.2f}; machine reference {reference:.3f} s; "
           f"{len(names)} materials (shard {args.shard})", flush=True)
@@ -118,10 +121,12 @@ def run(args) -> None:
             print(f"  {name:<28} {label:<36} {dt:6.2f} s{' cold' if cold else ''}"
                   f"{'' if r.success else ' NOT CONVERGED'}", flush=True)
 
-        for model in MODELS:
+        for model in models:
             fit(model, "", "default")
         for stem, (preset, metric) in PROTOCOLS.items():
             for pub in load_published(FITS / f"{stem}.fit", name):
+                if pub.model_name not in models:
+                    continue
                 fit(pub.model_name, preset, "refit", stem, metric)
                 cands.append(Candidate(f"published {stem}", "published", pub))
                 meta.append({"kind": "published", "model": pub.model_name, "preset": "",
@@ -231,6 +236,9 @@ def main():
     ap.add_argument("--names", default="")
     ap.add_argument("--cache", type=Path, default=None)
     ap.add_argument("--shard", default="1/1")
+    ap.add_argument("--models", default=",".join(MODELS),
+                    help="the models fitted with the defaults, and the only ones re-fitted "
+                         "(default: every model of MODELS)")
     ap.add_argument("--csv", type=Path, default=None)
     ap.add_argument("--summarize", type=Path, nargs="+", default=None)
     args = ap.parse_args()
