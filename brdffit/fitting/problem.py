@@ -273,16 +273,16 @@ def _field_sums(fields, r, pairs, batched: bool):
     ``(k, l)`` (each ``(len(pairs), 3)``) and ``Σ T_k r`` (``(F, 3)``), from the fields ``T_k``
     and the residual ``r`` (each ``(n, 3)``).
 
-    Two programs for the same sums, chosen by what XLA's CPU compiler makes of them (measured on
-    full realistic tables, one pass over the cells):
+    Two programs for the same sums, chosen by what XLA's CPU compiler makes of them:
 
     * one reduction per pair (``batched=False``), which XLA fuses with the fields' computation:
-      the faster of the two where the residual is nonlinear in the model (the ``log`` loss:
-      ``lafortune-3`` fits 25 % faster, ``ggx`` 10 %);
-    * the Gram matrices of the stacked fields and of ``T_k r``, one batched product per channel
-      (``batched=True``). Where the residual is linear in the model (``linear``, ``cosine``,
-      ``cosine-in``), XLA fuses the per-pair reductions otherwise, and a pass over the cells
-      took twice (``sgd``) to three times (``disney``) as long as this one.
+      the faster of the two where the residual is nonlinear in the model (the ``log`` loss);
+    * the Gram matrices of the stacked fields and of ``T_k r``, one batched matrix product per
+      channel (``batched=True``), for a residual linear in the model
+      (:attr:`~brdffit.fitting.losses.Loss.linear_residual`: ``linear``, ``cosine``,
+      ``cosine-in``, ``relative``). There the per-pair reductions are fused otherwise and a
+      pass over the cells takes several times as long (measurements: ``docs/log/fitting.md``,
+      "Field sums").
     """
     if not batched:
         r2 = r * r
