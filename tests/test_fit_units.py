@@ -791,6 +791,42 @@ def test_a_round_that_accepts_no_step_keeps_the_other_models_trust_region(monkey
     assert [size for size, _, _ in seen] == [100.0, 1e-3]
 
 
+def test_rounds_in_a_row_that_accept_no_step_hand_on_the_shrunken_region(monkeypatch):
+    """Two rounds in a row without an accepted step (Newton's model, then Gauss–Newton's, from
+    the same point): neither model is at fault alone, and each round restarting from the same
+    region would repeat the same rejections until the step limit (``sgd`` under
+    ``bagher2012`` on beige-fabric: 200 steps at one cost). From the second such round on,
+    the next round starts from the region the last one shrank; a round that moves resets
+    the count."""
+    from brdffit.fitting import stages
+    from brdffit.fitting.events import Events
+    from brdffit.fitting.solvers import make_solver
+
+    script = iter([  # (moved, step size at the round's end)
+        (True, 50.0),   # Newton: moved
+        (False, 2e-4),  # Gauss-Newton: rejected; Newton next starts from 50
+        (False, 1e-5),  # Newton: rejected too: hand on 1e-5
+        (False, 3e-7),  # Gauss-Newton: rejected again: hand on 3e-7
+        (True, 20.0),   # Newton: moved
+        (False, 1e-3),  # Gauss-Newton: rejected once: Newton starts from 20
+        (True, 9.0),
+    ])
+    seen = []
+
+    def scripted_solve(problem, solver, z0, data, floor, steps, active, second):
+        seen.append(float(solver.inner.search.initial_step_size))
+        moved, size = next(script)
+        z = np.asarray(z0) + (0.01 if moved else 0.0)
+        return _Round(z, np.asarray(steps), np.asarray(1.0), np.asarray(size), True, True)
+
+    monkeypatch.setattr(stages, "solve", scripted_solve)
+    monkeypatch.setattr(stages, "second_order", lambda *args: np.zeros((2, 2)))
+    problem = dataclasses.make_dataclass("P", [("chunks", int)])(chunks=4)
+    run = stages.Run(problem, None, 0.0, 7 * stages.ROUND_STEPS, Events())
+    run.solve(make_solver("lm", 1e-8, 1e-8), np.array([0.3, 0.4]), active=4, newton=True)
+    np.testing.assert_allclose(seen, [100.0, 50.0, 50.0, 1e-5, 3e-7, 20.0, 20.0])
+
+
 def test_rounds_that_leave_the_fit_where_it_was_end_the_solve_converged(monkeypatch):
     """A solve whose rounds run out of steps ends, converged, after two rounds in a row that
     each accepted steps but lowered the cost by less than ``STILL_RATE · ftol`` of itself per

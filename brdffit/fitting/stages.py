@@ -164,7 +164,11 @@ class Run:
         region on its own model's account; the next round, on the other model, starts from the
         region the failed round started with. Otherwise a wrong Newton model leaves
         Gauss–Newton a region shrunk ×0.25 per rejection each time, and the two crawl by turns
-        until the step limit. Every round of the default step
+        until the step limit. When two rounds in a row accepted no step (both models, from the
+        same point), the region the last one shrank is handed on: the fault is then no one
+        model's, and starting each round again from the same region repeats the same
+        rejections until the step limit, while a region shrinking further reaches steps the
+        models predict well. Every round of the default step
         limit has the same length, so one compiled program serves them all.
 
         The solve also ends, converged, when ``STILL_ROUNDS`` rounds in a row that ran out of
@@ -177,7 +181,7 @@ class Run:
         floor = self.floor if active == chunks else self.floor * active / chunks
         self.events.floor = float(floor)
         ftol = float(solver.ftol)
-        total, out, model, quiet, cost0 = 0, None, newton, 0, None
+        total, out, model, quiet, cost0, stuck = 0, None, newton, 0, None, 0
         while total < self.max_steps:
             steps = min(ROUND_STEPS, self.max_steps - total)
             if model:
@@ -196,7 +200,8 @@ class Run:
                 break
             if moved:
                 cost0 = float(out.cost)
-            if moved or not newton:
+            stuck = 0 if moved else stuck + 1
+            if moved or not newton or stuck >= 2:
                 z0, solver = out.z, with_initial_step(solver, float(out.step_size))
             model = newton and not model  # a round that ran out: the other model next
         return eqx.tree_at(lambda s: s.steps, out, np.asarray(total))
