@@ -742,25 +742,15 @@ class _Round(eqx.Module):
     still: bool = False
 
 
-def test_a_round_that_accepts_no_step_keeps_the_other_models_trust_region(monkeypatch):
-    """Rounds alternate between Newton's and Gauss–Newton's model. A Newton round whose every
-    trial point was rejected (a wrong second-order term) shrank the trust region on its own
-    model's account: the Gauss–Newton round after it starts from the region the failed round
-    started with, not from the shrunken one. A round that moved hands on its own region."""
+def _scripted_solve(monkeypatch, script, rounds, z_start, newton):
+    """Run ``Run.solve`` over scripted rounds (``(moved, step size at the round's end)``);
+    returns ``(seen, out)``, ``seen`` the (initial step size, Newton's model?, start point) of
+    each round."""
     from brdffit.fitting import stages
     from brdffit.fitting.events import Events
     from brdffit.fitting.solvers import make_solver
 
-    z_start = np.array([0.3, 0.4])
-    script = iter([  # (moved, step size at the round's end) of rounds 1, 2, 3 ...
-        (True, 50.0),   # Newton: moved, region 100 -> 50
-        (True, 7.0),    # Gauss-Newton: moved, 50 -> 7
-        (False, 1e-6),  # Newton: every trial rejected, 7 -> 1e-6
-        (True, 30.0),   # Gauss-Newton: must start from 7
-        (False, 2e-5),  # Newton: rejected again
-        (True, 40.0),   # Gauss-Newton: must start from 30
-    ])
-    seen = []
+    script, seen = iter(script), []
 
     def scripted_solve(problem, solver, z0, data, floor, steps, active, second):
         seen.append((float(solver.inner.search.initial_step_size), second is not None,
@@ -772,8 +762,27 @@ def test_a_round_that_accepts_no_step_keeps_the_other_models_trust_region(monkey
     monkeypatch.setattr(stages, "solve", scripted_solve)
     monkeypatch.setattr(stages, "second_order", lambda *args: np.zeros((2, 2)))
     problem = dataclasses.make_dataclass("P", [("chunks", int)])(chunks=4)
-    run = stages.Run(problem, None, 0.0, 6 * stages.ROUND_STEPS, Events())
-    out = run.solve(make_solver("lm", 1e-8, 1e-8), z_start, active=4, newton=True)
+    run = stages.Run(problem, None, 0.0, rounds * stages.ROUND_STEPS, Events())
+    return seen, run.solve(make_solver("lm", 1e-8, 1e-8), z_start, active=4, newton=newton)
+
+
+def test_a_round_that_accepts_no_step_keeps_the_other_models_trust_region(monkeypatch):
+    """Rounds alternate between Newton's and Gauss–Newton's model. A Newton round whose every
+    trial point was rejected (a wrong second-order term) shrank the trust region on its own
+    model's account: the Gauss–Newton round after it starts from the region the failed round
+    started with, not from the shrunken one. A round that moved hands on its own region."""
+    from brdffit.fitting import stages
+
+    z_start = np.array([0.3, 0.4])
+    script = [  # (moved, step size at the round's end) of rounds 1, 2, 3 ...
+        (True, 50.0),   # Newton: moved, region 100 -> 50
+        (True, 7.0),    # Gauss-Newton: moved, 50 -> 7
+        (False, 1e-6),  # Newton: every trial rejected, 7 -> 1e-6
+        (True, 30.0),   # Gauss-Newton: must start from 7
+        (False, 2e-5),  # Newton: rejected again
+        (True, 40.0),   # Gauss-Newton: must start from 30
+    ]
+    seen, out = _scripted_solve(monkeypatch, script, 6, z_start, newton=True)
 
     sizes = [size for size, _, _ in seen]
     assert sizes == [100.0, 50.0, 7.0, 7.0, 30.0, 30.0]
@@ -784,10 +793,8 @@ def test_a_round_that_accepts_no_step_keeps_the_other_models_trust_region(monkey
 
     # Gauss-Newton alone: a round without progress hands on its shrunken region (the same
     # model would otherwise repeat the same rejections).
-    script = iter([(False, 1e-3), (True, 5.0)])
-    seen.clear()
-    run = stages.Run(problem, None, 0.0, 2 * stages.ROUND_STEPS, Events())
-    run.solve(make_solver("lm", 1e-8, 1e-8), z_start, active=4, newton=False)
+    seen, _ = _scripted_solve(monkeypatch, [(False, 1e-3), (True, 5.0)], 2, z_start,
+                              newton=False)
     assert [size for size, _, _ in seen] == [100.0, 1e-3]
 
 
@@ -798,11 +805,7 @@ def test_rounds_in_a_row_that_accept_no_step_hand_on_the_shrunken_region(monkeyp
     ``bagher2012`` on beige-fabric: 200 steps at one cost). From the second such round on,
     the next round starts from the region the last one shrank; a round that moves resets
     the count."""
-    from brdffit.fitting import stages
-    from brdffit.fitting.events import Events
-    from brdffit.fitting.solvers import make_solver
-
-    script = iter([  # (moved, step size at the round's end)
+    script = [  # (moved, step size at the round's end)
         (True, 50.0),   # Newton: moved
         (False, 2e-4),  # Gauss-Newton: rejected; Newton next starts from 50
         (False, 1e-5),  # Newton: rejected too: hand on 1e-5
@@ -810,21 +813,10 @@ def test_rounds_in_a_row_that_accept_no_step_hand_on_the_shrunken_region(monkeyp
         (True, 20.0),   # Newton: moved
         (False, 1e-3),  # Gauss-Newton: rejected once: Newton starts from 20
         (True, 9.0),
-    ])
-    seen = []
-
-    def scripted_solve(problem, solver, z0, data, floor, steps, active, second):
-        seen.append(float(solver.inner.search.initial_step_size))
-        moved, size = next(script)
-        z = np.asarray(z0) + (0.01 if moved else 0.0)
-        return _Round(z, np.asarray(steps), np.asarray(1.0), np.asarray(size), True, True)
-
-    monkeypatch.setattr(stages, "solve", scripted_solve)
-    monkeypatch.setattr(stages, "second_order", lambda *args: np.zeros((2, 2)))
-    problem = dataclasses.make_dataclass("P", [("chunks", int)])(chunks=4)
-    run = stages.Run(problem, None, 0.0, 7 * stages.ROUND_STEPS, Events())
-    run.solve(make_solver("lm", 1e-8, 1e-8), np.array([0.3, 0.4]), active=4, newton=True)
-    np.testing.assert_allclose(seen, [100.0, 50.0, 50.0, 1e-5, 3e-7, 20.0, 20.0])
+    ]
+    seen, _ = _scripted_solve(monkeypatch, script, 7, np.array([0.3, 0.4]), newton=True)
+    np.testing.assert_allclose([size for size, _, _ in seen],
+                               [100.0, 50.0, 50.0, 1e-5, 3e-7, 20.0, 20.0])
 
 
 def test_rounds_that_leave_the_fit_where_it_was_end_the_solve_converged(monkeypatch):
