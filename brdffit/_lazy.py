@@ -6,7 +6,8 @@ import importlib
 
 
 def lazy_exports(package: str, namespace: dict, names: dict[str, str]):
-    """``(__getattr__, __dir__)`` for ``package`` exporting ``names`` (name → relative module).
+    """``(__getattr__, __dir__)`` for ``package`` exporting ``names`` (name → relative module,
+    or ``"module:attribute"`` for a name exported under another than its module's).
 
     The first access imports the module and stores the value in ``namespace`` (the package's
     ``globals()``), so later accesses are plain lookups.
@@ -14,10 +15,10 @@ def lazy_exports(package: str, namespace: dict, names: dict[str, str]):
 
     def __getattr__(name: str):
         try:
-            module = names[name]
+            module, _, attribute = names[name].partition(":")
         except KeyError:
             raise AttributeError(f"module {package!r} has no attribute {name!r}") from None
-        value = getattr(importlib.import_module(module, package), name)
+        value = getattr(importlib.import_module(module, package), attribute or name)
         namespace[name] = value
         return value
 

@@ -55,6 +55,7 @@ import numpy as np
 from data_formats.files import NotRegularFileError, open_regular
 
 from .errors import ConfigError, UnknownNameError, canonical_name
+from .fitting import DEFAULT_LOSS, DEFAULT_SOLVER, LOSSES, SOLVERS  # JAX-free registries
 
 #: The most samples a subsample may ask for (the readers' limit, ``MAX_SAMPLES`` = 2^24).
 MAX_SUBSAMPLE = 2**24
@@ -99,14 +100,6 @@ def _option(**spec):
 def _table_option(flag, help, metavar="NAME=VALUE"):
     return dataclasses.field(default_factory=dict, metadata={"option": Option(
         want="a table", table="", flag=flag, metavar=metavar, help=help)})
-
-
-#: The registered losses' and solvers' names, in registry order: :data:`brdffit.fitting.LOSSES`
-#: and :data:`brdffit.fitting.SOLVERS` are built on them, so that the ``--loss`` and ``--solver``
-#: help lists the registry without importing JAX.
-LOSS_NAMES = ("linear", "cosine", "log", "relative", "cosine-in")
-SOLVER_NAMES = ("lm", "gauss-newton", "dogleg")
-_LOSS, _SOLVER = "log", "lm"  # the defaults (brdffit.fitting's DEFAULT_LOSS, DEFAULT_SOLVER)
 
 
 def _one_of(names, default) -> str:
@@ -210,11 +203,11 @@ class FitOptions:
 
     model: str | None = _option(kind=str, want="a model name", default=None)
     loss: str | None = _option(
-        kind=str, want="a loss name", default=_LOSS, flag="--loss",
-        help=f"residual weighting: {_one_of(LOSS_NAMES, _LOSS)} (+huber)")
+        kind=str, want="a loss name", default=DEFAULT_LOSS, flag="--loss",
+        help=f"residual weighting: {_one_of(LOSSES, DEFAULT_LOSS)} (+huber)")
     solver: str | None = _option(
-        kind=str, want="a solver name", default=_SOLVER, table="solver", key="name",
-        flag="--solver", help=_one_of(SOLVER_NAMES, _SOLVER))
+        kind=str, want="a solver name", default=DEFAULT_SOLVER, table="solver", key="name",
+        flag="--solver", help=_one_of(SOLVERS, DEFAULT_SOLVER))
     init: Mapping = _table_option("--init", "start a parameter at a value; repeatable")
     fixed: Mapping = _table_option(
         "--fix", "hold a parameter at a value (f0=0.04 or f0=0.9,0.6,0.3); repeatable")

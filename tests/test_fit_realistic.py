@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import brdffit
-from brdffit.fitting.solvers import FTOL
+from brdffit.fitting.bounded import FTOL
 
 import realistic
 from numpy_ggx import LOWER, UPPER, ggx_numpy

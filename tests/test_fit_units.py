@@ -16,13 +16,13 @@ import pytest
 
 import brdffit
 from brdffit.errors import ConfigError, FitError, UnknownNameError
-from brdffit.fitting import LOSSES, FitResult, Subsample, get_loss
+from brdffit.fitting import LOSSES, SOLVERS, FitResult, Subsample, get_loss
 from brdffit.fitting.data import CHUNK_CELLS, block_order, select
 from brdffit.fitting.losses import RELATIVE_FLOOR, huber_residual
 from brdffit.fitting.normal_form import compress, compress_newton, gram, normal_form
 from brdffit.fitting.problem import Problem
 from brdffit.fitting.parameters import flat_log
-from brdffit.fitting.solvers import box_step, optimality, predicted_decrease
+from brdffit.fitting.bounded import box_step, optimality, predicted_decrease
 from brdffit.fitting.transforms import at_bound, bounds_in_s, to_box, to_physical
 from data_formats import SampleSet
 
@@ -605,6 +605,19 @@ def test_too_few_valid_cells_is_a_clear_error():
         brdffit.fit(s, "ggx")
 
 
+@pytest.mark.parametrize("solver", sorted(SOLVERS))
+def test_every_registered_solver_recovers_a_ggx_fit(solver):
+    """Each entry of the solver registry, made bounded, fits exact GGX data back to their
+    parameters, converged by the optimality test; the name is taken in any case."""
+    truth = {"alpha": 0.2, "f0": 0.5, "diffuse": 0.1}
+    r = brdffit.fit(ggx_samples(1500, truth), "ggx", solver=solver.upper(), multistart=0,
+                    init={"alpha": 0.3, "f0": 0.3, "diffuse": 0.2})
+    assert r.success and r.status == "successful", (solver, r.status, r.message)
+    assert r.provenance["options"]["solver"].lower() == solver
+    for name, value in truth.items():
+        np.testing.assert_allclose(np.asarray(r.params[name]), value, rtol=1e-5, atol=1e-7)
+
+
 def test_option_errors_name_the_choices():
     s = ggx_samples(300)
     with pytest.raises(UnknownNameError, match="dogleg"):
@@ -747,8 +760,8 @@ def _scripted_solve(monkeypatch, script, rounds, z_start, newton):
     returns ``(seen, out)``, ``seen`` the (initial step size, Newton's model?, start point) of
     each round."""
     from brdffit.fitting import stages
+    from brdffit.fitting.bounded import make_solver
     from brdffit.fitting.events import Events
-    from brdffit.fitting.solvers import make_solver
 
     script, seen = iter(script), []
 
@@ -827,8 +840,8 @@ def test_rounds_that_leave_the_fit_where_it_was_end_the_solve_converged(monkeypa
     round that accepted no step each restart the count. The verdict is success with status
     ``still`` and the optimality ω in its message."""
     from brdffit.fitting import outcome, stages
+    from brdffit.fitting.bounded import make_solver
     from brdffit.fitting.events import Events
-    from brdffit.fitting.solvers import make_solver
 
     F, n = 1000.0, stages.ROUND_STEPS
     allowed = n * stages.STILL_RATE * 1e-9 * F  # the cost's fall a round may have: 1e-4

@@ -171,17 +171,14 @@ def _check_mcmc_ranges(args) -> None:
 def _check_names(options):
     """``options`` with its loss and solver names checked now, so that a typo fails before the
     input is read, and spelled as registered (names ignore case: ``--loss LOG`` is ``log``)."""
-    from ..errors import UnknownNameError, canonical_name
-    from ..fitting import SOLVERS, get_loss
+    from ..fitting import get_loss, get_solver
 
     loss, solver = options.loss, options.solver
     if loss is not None:
         get_loss(loss)
         loss = loss.lower() if isinstance(loss, str) else loss  # all registered: lower case
     if solver is not None:
-        if canonical_name(solver, SOLVERS) is None:
-            raise UnknownNameError("solver", solver, SOLVERS)
-        solver = canonical_name(solver, SOLVERS)
+        solver = get_solver(solver).name
     return dataclasses.replace(options, loss=loss, solver=solver)
 
 

@@ -15,7 +15,7 @@ listed may change without notice.
   the statuses that say the data cannot give a fit (:data:`DATA_VERDICTS`), and the errors
   of reading one back, :class:`ResultFormatError`, :class:`ResultChoiceError`);
 * the registries: losses (:data:`LOSSES`, :data:`DEFAULT_LOSS`, :func:`get_loss`,
-  :class:`Loss`) and solvers (:data:`SOLVERS`, :data:`DEFAULT_SOLVER`);
+  :class:`Loss`) and solvers (:data:`SOLVERS`, :data:`DEFAULT_SOLVER`, :func:`get_solver`);
 * the pieces another estimator of the same problem needs (the posterior sampler): the cells
   (:func:`select`, :class:`Selection`, :class:`FitData`, :class:`Subsample`,
   :func:`check_enough`), the free scalars (:class:`Scalars`, :func:`assign`), the problem
@@ -23,19 +23,28 @@ listed may change without notice.
   (:func:`measure`, :class:`Features`).
 """
 
-from .data import WEIGHTINGS, FitData, Selection, Subsample, check_enough, select
-from .fitter import fit
-from .losses import DEFAULT_LOSS, LOSSES, Loss, get_loss
-from .outcome import DATA_VERDICTS
-from .options import FIT_DEFAULTS, Settings, default_precision, fit_options, tolerances
-from .parameters import Scalars, assign
-from .plausibility import warning_text as plausibility_warning
-from .problem import Problem
-from .report import fit_report, value_with_error
-from .result import FitResult, FittedModel, json_safe
-from .result_json import ResultChoiceError, ResultFormatError
-from .solvers import DEFAULT_SOLVER, SOLVERS
-from .start import Features, measure
+from .._lazy import lazy_exports
+
+#: The public names, each imported from its module on first use (PEP 562), so that importing a
+#: module of the package (the JAX-free registries :mod:`.losses` and :mod:`.solvers`, which the
+#: command line's help reads) does not import the whole engine and JAX with it.
+_LAZY = {
+    "WEIGHTINGS": ".data", "FitData": ".data", "Selection": ".data", "Subsample": ".data",
+    "check_enough": ".data", "select": ".data",
+    "fit": ".fitter",
+    "DEFAULT_LOSS": ".losses", "LOSSES": ".losses", "Loss": ".losses", "get_loss": ".losses",
+    "DATA_VERDICTS": ".outcome",
+    "FIT_DEFAULTS": ".options", "Settings": ".options", "default_precision": ".options",
+    "fit_options": ".options", "tolerances": ".options",
+    "Scalars": ".parameters", "assign": ".parameters",
+    "plausibility_warning": ".plausibility:warning_text",
+    "Problem": ".problem",
+    "fit_report": ".report", "value_with_error": ".report",
+    "FitResult": ".result", "FittedModel": ".result", "json_safe": ".result",
+    "ResultChoiceError": ".result_json", "ResultFormatError": ".result_json",
+    "DEFAULT_SOLVER": ".solvers", "SOLVERS": ".solvers", "get_solver": ".solvers",
+    "Features": ".start", "measure": ".start",
+}
 
 __all__ = [
     "DATA_VERDICTS",
@@ -64,6 +73,7 @@ __all__ = [
     "fit_options",
     "fit_report",
     "get_loss",
+    "get_solver",
     "json_safe",
     "plausibility_warning",
     "measure",
@@ -71,3 +81,5 @@ __all__ = [
     "tolerances",
     "value_with_error",
 ]
+
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

@@ -5,7 +5,7 @@ own code, and one event per solver step (``step``, or ``scan-step``/``warm-step`
 a subset of the cells) with the cost the step left the fit at.
 
 Progress is presentation, never another program: the compiled solve calls nothing back. It
-records the cost after each of its steps (:class:`.solvers.Optimality`, ``history``), and the
+records the cost after each of its steps (:class:`.bounded.Optimality`, ``history``), and the
 fit's own thread sends the step events of a solve's steps when the solve returns, between the
 compiled rounds of at most ``ROUND_STEPS`` steps (:meth:`.stages.Run.solve`). So a fit with a
 progress callback runs the very program of a fit without one, at no cost to it, and each fit's

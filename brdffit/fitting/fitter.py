@@ -3,7 +3,7 @@
 The pipeline: the options, checked (:mod:`~brdffit.fitting.options`) → the cells (:mod:`.data`)
 → the free scalars and their bounds (:mod:`.parameters`) → the starting point (:mod:`.start`, or
 the user's) → the problem in box coordinates (:mod:`.problem`, :mod:`.transforms`) → bounded
-optimistix solves of the Gauss–Newton normal form (:mod:`.normal_form`, :mod:`.solvers`,
+optimistix solves of the Gauss–Newton normal form (:mod:`.normal_form`, :mod:`.bounded`,
 :mod:`.solve`), start by start and stage by stage (:mod:`.stages`) → the verdict, covariance and
 metrics (:mod:`.outcome`, :mod:`.statistics`) → :class:`~.result.FitResult`.
 """
@@ -23,7 +23,7 @@ from .outcome import Prepared, assemble, end_point
 from .parameters import assign, free_scalars
 from .problem import Problem
 from .result import FitResult
-from .solvers import COST_NOISE, make_solver
+from .bounded import COST_NOISE, make_solver
 from .stages import best_of, starts
 from .start import start_point
 

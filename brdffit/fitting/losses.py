@@ -28,6 +28,11 @@ project transcribes them (``bsdfbenchmark/bbm``, ``include/loss/cosine_weighted_
 its solid angle (bbm's ``sinθi sinθo`` sample weights): the option ``weighting="solid-angle"``
 (:mod:`brdffit.fitting.data`), which the presets of their protocols set.
 
+A new loss is one :class:`Loss` entry of :data:`LOSSES`. This module imports no JAX when it is
+imported (the functions that run inside a fit import ``jax.numpy`` when first called), so the
+command line lists the registry in its ``--loss`` help (:data:`brdffit.config.OPTIONS`) without
+importing JAX.
+
 A robust variant of any loss (``huber=δ``) replaces ``r`` beyond ``|r| > δ`` by
 ``sign(r) sqrt(2δ|r| - δ²)``, so that ``r²/2`` becomes Huber's ``δ|r| - δ²/2`` there.
 
@@ -63,10 +68,8 @@ import dataclasses
 import re
 from collections.abc import Callable
 
-import jax.numpy as jnp
 import numpy as np
 
-from ..config import LOSS_NAMES, OPTIONS
 from ..errors import ConfigError, UnknownNameError, canonical_name
 
 #: Values below this are not used as the denominator of the relative loss.
@@ -86,6 +89,8 @@ def _cosine_in(f, cos_i, cos_o):
 
 
 def _log(f, cos_i, cos_o):
+    import jax.numpy as jnp  # here, not above: the registry is read without JAX (module docstring)
+
     return jnp.log1p(f * cos_i)
 
 
@@ -100,6 +105,8 @@ def _relative_weight(rho, cos_i, cos_o):
 def huber_residual(r, delta):
     r"""The residual whose half square is Huber's loss: ``r`` if ``|r| ≤ δ``, else
     ``sign(r) sqrt(2δ|r| - δ²)`` (so that ``r_h²/2 = δ|r| - δ²/2``)."""
+    import jax.numpy as jnp
+
     a = jnp.abs(r)
     big = a > delta
     safe = jnp.where(big, 2.0 * delta * a - delta**2, 1.0)
@@ -153,22 +160,20 @@ class Loss:
         return r if self.huber is None else huber_residual(r, self.huber)
 
 
-#: The losses by name: :data:`brdffit.config.LOSS_NAMES` names them, in this order (so that the
-#: command line's help lists them without importing JAX).
-LOSSES: dict[str, Loss] = {
-    name: Loss(name, transform, weight, description=description, linear=transform is not _log)
-    for name, (transform, weight, description) in zip(LOSS_NAMES, (
-        (_identity, _unit_weight, "ρ̂ - ρ (unweighted)"),
-        (_cosine, _unit_weight, "(ρ̂ - ρ) cosθi cosθo"),
-        (_log, _unit_weight, "log(1 + ρ̂ cosθi) - log(1 + ρ cosθi)"),
-        (_identity, _relative_weight, "(ρ̂ - ρ) / max(ρ, 1e-3)"),
-        (_cosine_in, _unit_weight, "(ρ̂ - ρ) cosθi (Ngan 2005, Löw 2012 E1)"),
-    ), strict=True)
-}
+#: The losses by name.
+LOSSES: dict[str, Loss] = {loss.name: loss for loss in (
+    Loss("linear", _identity, description="ρ̂ - ρ (unweighted)", linear=True),
+    Loss("cosine", _cosine, description="(ρ̂ - ρ) cosθi cosθo", linear=True),
+    Loss("log", _log, description="log(1 + ρ̂ cosθi) - log(1 + ρ cosθi)"),
+    Loss("relative", _identity, _relative_weight, description="(ρ̂ - ρ) / max(ρ, 1e-3)",
+         linear=True),
+    Loss("cosine-in", _cosine_in, description="(ρ̂ - ρ) cosθi (Ngan 2005, Löw 2012 E1)",
+         linear=True),
+)}
 
 #: The loss :func:`brdffit.fit` uses unless told otherwise (see the module docstring for why):
 #: the default of :class:`brdffit.config.FitOptions`.
-DEFAULT_LOSS = OPTIONS["loss"].default
+DEFAULT_LOSS = "log"
 
 
 _ROBUST = re.compile(r"^huber(?:\((?P<delta>[^()]+)\))?$")

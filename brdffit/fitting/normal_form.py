@@ -35,7 +35,7 @@ The one difference from running optimistix on the full residual: its Cauchy term
 compares successive residual vectors element by element; here it compares successive ``r̃``
 (``R^{-⊤}J^⊤r`` tends to zero at the optimum, ``c`` to the residual norm), together with the
 usual test on the step in ``u``. That test only catches a stall; convergence is the
-optimality test of :class:`brdffit.fitting.solvers.Optimality`, computed from ``J̃`` and ``r̃``.
+optimality test of :class:`brdffit.fitting.bounded.Optimality`, computed from ``J̃`` and ``r̃``.
 """
 
 from __future__ import annotations
@@ -118,7 +118,7 @@ def compress_newton(sum_r2, jtj, second, jtr, u):
     * With the box coordinates ``u``, the rows and columns of ``S`` of the coordinates *held*
       on a bound (on it, the gradient ``Jᵀr`` pointing outward: the bounded step keeps them
       there, :func:`brdffit.fitting.transforms.held_on_bounds`, as in
-      :func:`brdffit.fitting.solvers.box_step`) are left out: the curvature that
+      :func:`brdffit.fitting.bounded.box_step`) are left out: the curvature that
       matters is the one of the free coordinates. A parameter whose optimum lies beyond its
       bound can have strong negative curvature along its own coordinate (``F90`` pressed on 0
       by the grazing cells: an eigenvalue of −1.5e8 against ``JᵀJ``'s 3e4…2e8 on aluminium,

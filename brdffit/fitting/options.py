@@ -19,7 +19,7 @@ import jax
 
 from ..config import CODE_DEFAULTS, FitOptions, canonical_choices, check_fit_options
 from .losses import Loss, get_loss
-from .solvers import FTOL
+from .bounded import FTOL
 
 #: Every option of :func:`brdffit.fitting.fit` with its default (``None``: decided from the
 #: data, the precision or not at all; see :class:`Settings`); they live with the options
@@ -36,7 +36,7 @@ def default_precision() -> str:
 def tolerances(precision: str, rtol=None, atol=None, ftol=None) -> tuple[float, float, float]:
     """``(rtol, atol, ftol)`` with the defaults of ``precision`` filled in: the Cauchy test's
     ``1e-14`` in float64 (``1e-6`` in float32), near rounding so that it catches only a true
-    stall, and the optimality test's :data:`~brdffit.fitting.solvers.FTOL`."""
+    stall, and the optimality test's :data:`~brdffit.fitting.bounded.FTOL`."""
     base = 1e-14 if precision == "float64" else 1e-6
     return (
         base if rtol is None else float(rtol),
@@ -105,7 +105,7 @@ class Settings:
             reported as stalled unless the optimality test holds too).
         ftol: the optimality test: converged when the bounded Gauss–Newton step from the end
             point would lower the cost by less than ``ftol`` times the cost (default 1e-9 in
-            float64, 1e-6 in float32); see :func:`brdffit.fitting.solvers.optimality`.
+            float64, 1e-6 in float32); see :func:`brdffit.fitting.bounded.optimality`.
         scan: before the warm start, solve a few candidate starts with shifted lobe widths on a
             small evenly spread subset of the cells and keep the best
             (:mod:`brdffit.fitting.stages`); ``False`` starts from the data-driven (or given)

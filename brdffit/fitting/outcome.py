@@ -31,7 +31,7 @@ from .plausibility import assess, verdict_record
 from .problem import Problem
 from .result import FitResult
 from .solve import Solved
-from .solvers import solver_label
+from .bounded import solver_label
 from .stages import STILL_RATE
 from .statistics import identified_covariance
 from .transforms import at_bound

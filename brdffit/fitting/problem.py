@@ -97,7 +97,7 @@ class Problem(eqx.Module):
         ``κ ε (|g(ρ)| + 1) w`` (``κ = 10``, ``ε`` the compute dtype's epsilon) bounds the rounding
         error of one residual, so ``noise × F`` is the rounding noise of a cost near zero. Adding
         ``F`` to the cost (constant: no step changes) lets the trust region's relative noise test
-        (:class:`brdffit.fitting.solvers.NoiseTolerantTrustRegion`) recognise an exact fit (cost at
+        (:class:`brdffit.fitting.bounded.NoiseTolerantTrustRegion`) recognise an exact fit (cost at
         its rounding floor) as converged instead of rejecting noise-sized steps forever.
         """
         eps = float(jnp.finfo(jnp.dtype(self.compute_dtype)).eps)

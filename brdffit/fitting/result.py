@@ -102,7 +102,7 @@ class FitResult:
         timings: a breakdown (``prepare``, ``solve``, ``finish``), seconds.
         table: the input's name. covariance: ``"sandwich"`` or ``"gn"``, how ``cov`` was estimated.
         optimality: ``ω`` at the end point, the fraction of the cost that the bounded
-            Gauss–Newton step could still remove (:func:`brdffit.fitting.solvers.optimality`);
+            Gauss–Newton step could still remove (:func:`brdffit.fitting.bounded.optimality`);
             ``success`` means ``ω ≤ ftol``, or status ``"still"``.
         provenance: what produced the result (empty for the low-level
             :func:`brdffit.fitting.fit`; :func:`brdffit.fit` fills it): ``input`` (``path``,

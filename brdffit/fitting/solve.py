@@ -22,7 +22,7 @@ import optimistix as optx
 from .data import FitData
 from .normal_form import normal_form, over_blocks
 from .problem import Problem
-from .solvers import COST_NOISE, end_optimality, with_history
+from .bounded import COST_NOISE, end_optimality, with_history
 from .statistics import N_CELL_SUMS, metrics_from
 
 #: XLA CPU options for the fitting program (per program: ``jax.config`` and ``XLA_FLAGS`` are
@@ -58,7 +58,7 @@ class Solved(eqx.Module):
         result: optimistix's verdict, an item of ``optimistix.RESULTS``.
         steps: solver steps taken.
         cost: ``½ Σ r²`` over the solve's cells (without the cost floor).
-        omega: the optimality measure ``ω`` (:func:`.solvers.optimality`).
+        omega: the optimality measure ``ω`` (:func:`.bounded.optimality`).
         jtj, meat: ``JᵀJ`` and ``Jᵀdiag(r²)J`` with respect to ``z``.
         dxdz: ``∂x/∂z`` per free scalar (the box map is elementwise).
         metrics: the error figures (:func:`.statistics.metrics_from`).
@@ -129,7 +129,7 @@ def _solve(problem: Problem, solver, z0, data, floor, max_steps: int, active, se
         fn, with_history(solver, max_steps), z0, args=(data, floor, active, second),
         max_steps=max_steps, throw=False, has_aux=True,
     )
-    state = sol.state.inner  # optimistix's, inside Optimality's (.solvers.Recorded)
+    state = sol.state.inner  # optimistix's, inside Optimality's (.bounded.Recorded)
     aux = state.aux  # JᵀJ, Jᵀdiag(r²)J and the error sums at sol.value
     _, dxdz = jax.jvp(problem.physical, (sol.value,), (jnp.ones_like(sol.value),))
     metrics, cost, m = metrics_from(aux["sum_r2"], aux["extra"])

@@ -9,7 +9,7 @@ Each start runs through up to three stages, each beginning where the previous on
    glossy tail);
 2. **warm** (selections of at least ``WARM_MIN_CHUNKS`` blocks): the optimum on
    ``WARM_FRACTION`` of the blocks, a fraction of a full pass per step;
-3. **full**: the whole selection, to the optimality test (:class:`~.solvers.Optimality`).
+3. **full**: the whole selection, to the optimality test (:class:`~.bounded.Optimality`).
 
 After the first stage the solver's quadratic model is Newton's, ``JᵀJ`` plus the second-order
 term (:func:`.solve.second_order`), alternating with Gauss–Newton's model every
@@ -35,7 +35,7 @@ from .events import Events
 from .parameters import flat_scanned
 from .problem import Problem
 from .solve import Solved, compile_second_ahead, cost_floor, second_order, solve
-from .solvers import with_ftol, with_initial_step
+from .bounded import with_ftol, with_initial_step
 
 #: The warm start runs when the selection has at least this many blocks of cells ...
 WARM_MIN_CHUNKS = 8

@@ -10,7 +10,7 @@ Each free scalar ``x ∈ [lo, hi]`` is fitted through its position ``z`` in the 
 
 with ``lo_s, hi_s`` the bounds in ``s`` (``log`` of the bounds for a log parameter). The map is
 affine in ``s``, so a parameter on its bound has the same derivative as one inside: the bounded
-Levenberg–Marquardt step (:func:`brdffit.fitting.solvers.box_step`) keeps every iterate in the
+Levenberg–Marquardt step (:func:`brdffit.fitting.bounded.box_step`) keeps every iterate in the
 box, puts a parameter whose optimum lies at or beyond its bound exactly on it, and leaves it
 there only when the gradient points back inside (an active set, as in MINPACK/Ceres's bounded LM
 or scipy's ``trf``). A logistic map ``x − lo ∝ eᵘ`` would not do: its derivative vanishes on the
