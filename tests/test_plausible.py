@@ -12,6 +12,7 @@ import brdffit
 import realistic
 from brdffit.batch.table import frame, result_row
 from brdffit.cli import main
+from brdffit.fitting import LOSSES, plausibility
 from brdffit.fitting.plausibility import assess, verdict_record
 from brdffit.models.albedo import CHECK_ANGLES, CHECK_GRID, albedo
 
@@ -200,3 +201,15 @@ def test_the_cosine_loss_on_a_polished_metal_is_loudly_implausible(cells):
     assert "fit with the log loss" in checks["diffuse_bound"]["meaning"]
     log = brdffit.fit(cells["ss440"], "ggx", cutoff=preset.cutoff)
     assert log.success and log.plausible is True, log.plausibility
+
+
+@pytest.mark.parametrize("name", sorted(LOSSES))
+def test_a_white_diffuse_names_the_absolute_losses_as_its_cause(name):
+    """A diffuse term on its bound 1 blames the loss where the loss weighs absolute errors (its
+    registry entry says so, :attr:`Loss.absolute`), for the plain and the robust variant."""
+    for label in (name, f"{name}+huber(0.1)"):
+        check = plausibility.white_diffuse({"diffuse": np.ones(3)}, label)
+        assert check["passed"] is False
+        assert ("absolute errors" in check["meaning"]) == LOSSES[name].absolute, label
+    assert LOSSES["log"].absolute is False and LOSSES["relative"].absolute is False
+    assert LOSSES["cosine-in"].absolute and LOSSES["linear"].absolute

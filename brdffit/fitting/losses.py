@@ -139,6 +139,13 @@ class Loss:
     linear: bool = False
 
     @property
+    def absolute(self) -> bool:
+        """The residual is an absolute error of ``f_r`` (times a cosine at most): ``transform``
+        linear, no weight from the data. Under such a loss the peak's cells outweigh the whole
+        diffuse signal (:mod:`brdffit.fitting.plausibility` says so of a diffuse term at 1)."""
+        return self.linear and self.weight is _unit_weight
+
+    @property
     def linear_residual(self) -> bool:
         """The residual is linear in the prediction (a linear ``transform``, no Huber): its
         derivative is the model's times a constant per cell."""

@@ -57,10 +57,12 @@ import math
 
 import numpy as np
 
+from ..errors import ConfigError, UnknownNameError
 from ..metrics import metric_text
 from ..models.albedo import CHECK_ANGLES, max_albedo
 from ..models.registry import get_model
 from ..models.starts import METAL_F0
+from .losses import get_loss
 
 #: The quadrature's slack on ``ρ ≤ 1`` (its error is below 1e-3 on the check's grid).
 ENERGY_SLACK = 0.01
@@ -117,6 +119,15 @@ def grazing(params, derived) -> dict | None:
     return _check("f90", ok, gap, 0.0, meaning)
 
 
+def _absolute(loss: str) -> bool:
+    """Whether the loss labelled ``loss`` weighs absolute errors (:attr:`.losses.Loss.absolute`);
+    ``False`` for a label that is not a registered loss's."""
+    try:
+        return get_loss(loss).absolute
+    except (UnknownNameError, ConfigError):
+        return False
+
+
 def white_diffuse(params, loss: str = "") -> dict | None:
     """The ``diffuse_bound`` check: ``diffuse``, or a dielectric's ``base_color``; ``loss``
     (the fit's loss label) names the likely cause."""
@@ -128,7 +139,7 @@ def white_diffuse(params, loss: str = "") -> dict | None:
         return None
     top = float(np.max(albedo))
     ok = top < WHITE
-    absolute = loss.split("+")[0] in ("linear", "cosine", "cosine-in")
+    absolute = _absolute(loss)
     cause = (f"with the {loss} loss (absolute errors) the specular peak's residuals outweigh "
              f"the whole diffuse signal, so the diffuse term is barely determined and takes up "
              f"the peak's shoulders; fit with the log loss, or fix {what}" if absolute else
