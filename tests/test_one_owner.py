@@ -239,3 +239,35 @@ def test_the_fitting_record_is_data_and_brdffit_fitresult_adds_its_uses():
     assert result.to_json() == text == brdffit.FitResult.of(record).to_json()  # same JSON
     assert result.export("gltf") == brdffit.export.export(record, "gltf").payload
     assert fitting.FitResult.from_json(text).summary() == result.summary()
+
+
+# -- losses and solvers: one registry entry each -------------------------------------------------
+def test_a_loss_and_a_solver_are_one_registry_entry_each(monkeypatch, tmp_path):
+    """A new loss needs its functions and one :class:`Loss` entry in ``LOSSES``; a new solver one
+    :class:`Solver` entry in ``SOLVERS``: ``brdffit.fit`` and the command line take them by name
+    (in any case), and the result records them."""
+    import dataclasses
+    import json
+
+    import brdffit
+    from brdffit.cli import main
+    from brdffit.fitting import LOSSES, SOLVERS
+    from brdffit.fitting.losses import Loss
+    from brdffit.fitting.solvers import Solver
+    from data_formats.samplelist import write_samples
+
+    toy = dataclasses.replace(LOSSES["cosine"], name="toy-loss", description="a toy")
+    monkeypatch.setitem(LOSSES, "toy-loss", toy)
+    monkeypatch.setitem(SOLVERS, "toy-lm", Solver("toy-lm", "LevenbergMarquardt", "a toy"))
+    assert isinstance(LOSSES["toy-loss"], Loss)
+    data = _table().to_samples()
+    result = brdffit.fit(data, "ggx", loss="Toy-Loss", solver="TOY-LM", cutoff=90)
+    reference = brdffit.fit(data, "ggx", loss="cosine", solver="lm", cutoff=90)
+    assert result.loss == "toy-loss" and result.success
+    assert result.cost == reference.cost
+    src, out = tmp_path / "s.csv", tmp_path / "r.json"
+    write_samples(src, data)
+    assert main(["-q", "fit", str(src), "--model", "ggx", "--loss", "toy-loss", "--solver",
+                 "toy-lm", "--cutoff", "90", "--out", str(out)]) == 0
+    options = json.loads(out.read_text())["provenance"]["options"]
+    assert (options["loss"], options["solver"]) == ("toy-loss", "toy-lm")
