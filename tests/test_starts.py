@@ -80,3 +80,42 @@ def test_the_fitter_uses_a_models_hook_and_keeps_the_rest_at_defaults():
     assert guess(hooked, FEATURES[2]) == {"alpha": 0.5}
     by_name = guess(ggx, FEATURES[2])  # no hook: the features by parameter name
     assert set(by_name) == {"diffuse", "f0", "alpha"} and by_name["alpha"] == 0.1
+
+
+def _lambert_with_a_peak(share: float, alpha: float = 0.1, n: int = 40_000, seed: int = 5):
+    """Cells of a Lambertian ``ρ_d = 0.4`` plus a GGX lobe whose height at the mirror direction
+    is ``share`` of ``ρ_d/π``, with 2 % multiplicative scatter (a measurement's)."""
+    from brdffit.terms.ndf import GGX
+
+    rng = np.random.default_rng(seed)
+    wi, wo = (np.asarray(v) for v in hemisphere_pairs(n, rng))
+    h = wi + wo
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    lobe = np.asarray(GGX(alpha).D(jnp.asarray(h))) / float(GGX(alpha).D(jnp.array([0.0, 0, 1])))
+    rho = 0.4 / np.pi * (1.0 + share * lobe)
+    rgb = np.repeat(rho[:, None], 3, axis=1) * (1.0 + 0.02 * rng.standard_normal((n, 3)))
+    return rgb, wi, wo
+
+
+def hemisphere_pairs(n, rng):
+    out = []
+    for _ in range(2):
+        v = rng.standard_normal((n, 3))
+        v[:, 2] = np.abs(v[:, 2])
+        out.append(v / np.linalg.norm(v, axis=1, keepdims=True))
+    return out
+
+
+def test_a_peak_within_the_scatter_of_a_matte_table_reads_as_broad():
+    """A lobe lower than ``FLAT_PEAK`` of the diffuse level has no width to read: it reads as the
+    broadest start (``α`` 0.9), not as whatever width the scatter of the bins nearest the peak
+    suggests (narrow: the realistic fabrics and foam read 0.002, started a sharp lobe and walked
+    it broad for tens of steps). A peak well above the diffuse level keeps its measured width."""
+    from brdffit.fitting.start import ALPHA_RANGE, FLAT_PEAK, measure
+
+    rgb, wi, wo = _lambert_with_a_peak(share=0.2 * FLAT_PEAK)
+    flat = measure(rgb, wi, wo, np.ones(len(rgb), bool))
+    assert flat.alpha == ALPHA_RANGE[1]
+    rgb, wi, wo = _lambert_with_a_peak(share=5.0, alpha=0.1)
+    peak = measure(rgb, wi, wo, np.ones(len(rgb), bool))
+    assert 0.05 < peak.alpha < 0.2

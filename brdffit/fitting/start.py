@@ -10,7 +10,8 @@ difference angle, Rusinkiewicz 1998):
 * **peak width** ``θ½``: the half angle where the excess falls to ``H/2``. For GGX
   (RTR eq. 9.41) ``D(θh)/D(0) = 1/2`` at ``tan²θh = α²(√2 − 1)``, so
   ``α ≈ tan θ½ / 0.6436``; at the peak ``f ≈ F0 D(0) / (4 cos²θd)`` (RTR eq. 9.34 with
-  ``G2 ≈ 1``), so ``F0 ≈ 4π α² cos²θd H``.
+  ``G2 ≈ 1``), so ``F0 ≈ 4π α² cos²θd H``. A peak lower than :data:`FLAT_PEAK` of the
+  diffuse level has no width to read and reads as broad (``θ½ = 60°``).
 * **anisotropy** ``α_x, α_y`` and the azimuth ``φ_t`` of the ``α_x`` axis: anisotropic GGX
   (RTR eq. 9.53) is ``D ∝ h_z⁻⁴ (1 + sᵀAs)⁻²`` in the half vector's slope
   ``s = (h_x, h_y)/h_z``, ``A = R diag(α_x⁻², α_y⁻²) Rᵀ`` with ``R`` the rotation by ``φ_t``. With
@@ -79,6 +80,17 @@ def _half_width(theta_h, excess, height):
     return np.radians(60.0)
 
 
+#: The least peak height :func:`measure` reports (where the cells nearest the mirror direction are
+#: not above the diffuse level).
+NO_PEAK = 1e-6
+#: A peak lower than this fraction of the diffuse level ``ρ_d/π`` (channel means) has no width
+#: that :func:`measure` can read: its excess is within the scatter of the cells, so the first
+#: bin's median is already below half of it and the width would read as the narrowest one
+#: (``α`` 0.002, on fabrics and foam). Such a lobe is read as broad instead (``θh`` 60°, the
+#: width of a peak whose excess never halves). The realistic corpus's peaks are either below
+#: 0.1 of the diffuse level (six fabrics and a foam, 0.0001–0.09) or above 0.15.
+FLAT_PEAK = 0.1
+
 #: ``measure`` reads at most this many cells (a fixed, evenly strided subset) plus the
 #: cells nearest the peak, so that a full table costs milliseconds.
 MEASURE_CELLS = 100_000
@@ -115,9 +127,12 @@ def measure(rgb, wi, wo, good) -> Features:
     if np.count_nonzero(near) < 10:
         near = np.ones(len(rgb), bool)
     order = np.argsort(theta_h[near])[:5]
-    height = np.maximum(np.median(excess[near][order], axis=0), 1e-6)
-    theta_half = _half_width(theta_h[near], excess[near].mean(axis=1), height.mean())
-    alpha = float(np.clip(np.tan(theta_half) / GGX_HALF_WIDTH, 2e-3, 0.9))
+    height = np.maximum(np.median(excess[near][order], axis=0), NO_PEAK)
+    if height.mean() < FLAT_PEAK * diffuse.mean() / np.pi:  # no width to read
+        theta_half = np.radians(60.0)
+    else:
+        theta_half = _half_width(theta_h[near], excess[near].mean(axis=1), height.mean())
+    alpha = float(np.clip(np.tan(theta_half) / GGX_HALF_WIDTH, *ALPHA_RANGE))
     cos_d = np.cos(np.median(theta_d[near][order]))
     f0 = np.clip(4 * np.pi * alpha**2 * cos_d**2 * height, 0.01, 0.95)
     aniso = anisotropy(excess.mean(axis=1)[near], wi[near], wo[near], float(height.mean()))
