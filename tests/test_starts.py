@@ -107,11 +107,12 @@ def hemisphere_pairs(n, rng):
 
 
 def test_a_peak_within_the_scatter_of_a_matte_table_reads_as_broad():
-    """A lobe lower than ``FLAT_PEAK`` of the diffuse level has no width to read: it reads as the
+    """A lobe above the floor but lower than ``FLAT_PEAK`` of the diffuse level has no width to
+    read: it reads as the
     broadest start (``α`` 0.9), not as whatever width the scatter of the bins nearest the peak
     suggests (narrow: the realistic fabrics and foam read 0.002, started a sharp lobe and walked
     it broad for tens of steps). A peak well above the diffuse level keeps its measured width."""
-    from brdffit.fitting.start import ALPHA_RANGE, FLAT_PEAK, measure
+    from brdffit.fitting.start import ALPHA_RANGE, FLAT_PEAK, NO_PEAK, measure
 
     rgb, wi, wo = _lambert_with_a_peak(share=0.2 * FLAT_PEAK)
     flat = measure(rgb, wi, wo, np.ones(len(rgb), bool))
@@ -119,3 +120,7 @@ def test_a_peak_within_the_scatter_of_a_matte_table_reads_as_broad():
     rgb, wi, wo = _lambert_with_a_peak(share=5.0, alpha=0.1)
     peak = measure(rgb, wi, wo, np.ones(len(rgb), bool))
     assert 0.05 < peak.alpha < 0.2
+    # no excess at all (an exact Lambertian table): the narrow reading, a lobe that can vanish
+    lambert = np.full_like(rgb, 0.4 / np.pi)
+    none = measure(lambert, wi, wo, np.ones(len(rgb), bool))
+    assert np.all(none.height == NO_PEAK) and none.alpha == ALPHA_RANGE[0]

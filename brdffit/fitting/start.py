@@ -10,8 +10,8 @@ difference angle, Rusinkiewicz 1998):
 * **peak width** ``θ½``: the half angle where the excess falls to ``H/2``. For GGX
   (RTR eq. 9.41) ``D(θh)/D(0) = 1/2`` at ``tan²θh = α²(√2 − 1)``, so
   ``α ≈ tan θ½ / 0.6436``; at the peak ``f ≈ F0 D(0) / (4 cos²θd)`` (RTR eq. 9.34 with
-  ``G2 ≈ 1``), so ``F0 ≈ 4π α² cos²θd H``. A peak lower than :data:`FLAT_PEAK` of the
-  diffuse level has no width to read and reads as broad (``θ½ = 60°``).
+  ``G2 ≈ 1``), so ``F0 ≈ 4π α² cos²θd H``. A peak above :data:`NO_PEAK` but lower than
+  :data:`FLAT_PEAK` of the diffuse level has no width to read and reads as broad (``θ½ = 60°``).
 * **anisotropy** ``α_x, α_y`` and the azimuth ``φ_t`` of the ``α_x`` axis: anisotropic GGX
   (RTR eq. 9.53) is ``D ∝ h_z⁻⁴ (1 + sᵀAs)⁻²`` in the half vector's slope
   ``s = (h_x, h_y)/h_z``, ``A = R diag(α_x⁻², α_y⁻²) Rᵀ`` with ``R`` the rotation by ``φ_t``. With
@@ -87,8 +87,12 @@ NO_PEAK = 1e-6
 #: that :func:`measure` can read: its excess is within the scatter of the cells, so the first
 #: bin's median is already below half of it and the width would read as the narrowest one
 #: (``α`` 0.002, on fabrics and foam). Such a lobe is read as broad instead (``θh`` 60°, the
-#: width of a peak whose excess never halves). The realistic corpus's peaks are either below
-#: 0.1 of the diffuse level (six fabrics and a foam, 0.0001–0.09) or above 0.15.
+#: width of a peak whose excess never halves). A table with no excess at all (every channel at
+#: :data:`NO_PEAK`: a constant or Lambertian table) keeps the narrow reading: a narrow lobe
+#: touches the fewest cells, so a lobe the data do not ask for vanishes (``F0 → 0``) without
+#: moving the rest, and its width stays where it started, not identified. The realistic
+#: corpus's peaks are either below 0.1 of the diffuse level (six fabrics and a foam,
+#: 0.0001–0.09) or above 0.15.
 FLAT_PEAK = 0.1
 
 #: ``measure`` reads at most this many cells (a fixed, evenly strided subset) plus the
@@ -128,8 +132,8 @@ def measure(rgb, wi, wo, good) -> Features:
         near = np.ones(len(rgb), bool)
     order = np.argsort(theta_h[near])[:5]
     height = np.maximum(np.median(excess[near][order], axis=0), NO_PEAK)
-    if height.mean() < FLAT_PEAK * diffuse.mean() / np.pi:  # no width to read
-        theta_half = np.radians(60.0)
+    if np.any(height > NO_PEAK) and height.mean() < FLAT_PEAK * diffuse.mean() / np.pi:
+        theta_half = np.radians(60.0)  # a low peak: no width to read, a broad lobe
     else:
         theta_half = _half_width(theta_h[near], excess[near].mean(axis=1), height.mean())
     alpha = float(np.clip(np.tan(theta_half) / GGX_HALF_WIDTH, *ALPHA_RANGE))
