@@ -123,4 +123,4 @@ def test_a_peak_within_the_scatter_of_a_matte_table_reads_as_broad():
     # no excess at all (an exact Lambertian table): the narrow reading, a lobe that can vanish
     lambert = np.full_like(rgb, 0.4 / np.pi)
     none = measure(lambert, wi, wo, np.ones(len(rgb), bool))
-    assert np.all(none.height == NO_PEAK) and none.alpha == ALPHA_RANGE[0]
+    assert np.all(none.height == NO_PEAK) and none.alpha < 0.1
