@@ -17,12 +17,12 @@ import pytest
 import brdffit
 from brdffit.errors import ConfigError, FitError, UnknownNameError
 from brdffit.fitting import LOSSES, SOLVERS, FitResult, Subsample, get_loss
+from brdffit.fitting.bounded import box_step, optimality, predicted_decrease
 from brdffit.fitting.data import CHUNK_CELLS, block_order, select
 from brdffit.fitting.losses import RELATIVE_FLOOR, huber_residual
 from brdffit.fitting.normal_form import compress, compress_newton, gram, normal_form
 from brdffit.fitting.problem import Problem
 from brdffit.fitting.parameters import flat_log
-from brdffit.fitting.bounded import box_step, optimality, predicted_decrease
 from brdffit.fitting.transforms import at_bound, bounds_in_s, to_box, to_physical
 from data_formats import SampleSet
 

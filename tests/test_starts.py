@@ -14,6 +14,7 @@ import pytest
 
 import brdffit
 from brdffit.fitting.start import Features, guess
+from test_fit_units import hemisphere
 
 #: Features at the edges of what ``measure`` returns: dielectric and metal, narrow and wide.
 FEATURES = [
@@ -88,22 +89,13 @@ def _lambert_with_a_peak(share: float, alpha: float = 0.1, n: int = 40_000, seed
     from brdffit.terms.ndf import GGX
 
     rng = np.random.default_rng(seed)
-    wi, wo = (np.asarray(v) for v in hemisphere_pairs(n, rng))
+    wi, wo = hemisphere(n, rng), hemisphere(n, rng)
     h = wi + wo
     h /= np.linalg.norm(h, axis=1, keepdims=True)
     lobe = np.asarray(GGX(alpha).D(jnp.asarray(h))) / float(GGX(alpha).D(jnp.array([0.0, 0, 1])))
     rho = 0.4 / np.pi * (1.0 + share * lobe)
     rgb = np.repeat(rho[:, None], 3, axis=1) * (1.0 + 0.02 * rng.standard_normal((n, 3)))
     return rgb, wi, wo
-
-
-def hemisphere_pairs(n, rng):
-    out = []
-    for _ in range(2):
-        v = rng.standard_normal((n, 3))
-        v[:, 2] = np.abs(v[:, 2])
-        out.append(v / np.linalg.norm(v, axis=1, keepdims=True))
-    return out
 
 
 def test_a_peak_within_the_scatter_of_a_matte_table_reads_as_broad():

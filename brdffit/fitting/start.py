@@ -69,6 +69,11 @@ def _angles(wi, wo):
     return theta_h, theta_d
 
 
+#: The half width of a peak whose excess never halves within the bins (and of a low peak,
+#: :data:`FLAT_PEAK`): a broad lobe, ``α`` on the upper end of :data:`ALPHA_RANGE`.
+BROAD_HALF_WIDTH = np.radians(60.0)
+
+
 def _half_width(theta_h, excess, height):
     """``θh`` where the binned median of the (channel-mean) excess first drops below ``H/2``."""
     edges = np.concatenate([[0.0], np.geomspace(2e-4, np.radians(80.0), 64)])
@@ -77,7 +82,7 @@ def _half_width(theta_h, excess, height):
         sel = idx == b
         if np.count_nonzero(sel) >= 3 and np.median(excess[sel]) < 0.5 * height:
             return 0.5 * (edges[b] + edges[b + 1])
-    return np.radians(60.0)
+    return BROAD_HALF_WIDTH
 
 
 #: The least peak height :func:`measure` reports (where the cells nearest the mirror direction are
@@ -133,7 +138,7 @@ def measure(rgb, wi, wo, good) -> Features:
     order = np.argsort(theta_h[near])[:5]
     height = np.maximum(np.median(excess[near][order], axis=0), NO_PEAK)
     if np.any(height > NO_PEAK) and height.mean() < FLAT_PEAK * diffuse.mean() / np.pi:
-        theta_half = np.radians(60.0)  # a low peak: no width to read, a broad lobe
+        theta_half = BROAD_HALF_WIDTH  # a low peak: no width to read
     else:
         theta_half = _half_width(theta_h[near], excess[near].mean(axis=1), height.mean())
     alpha = float(np.clip(np.tan(theta_half) / GGX_HALF_WIDTH, *ALPHA_RANGE))
