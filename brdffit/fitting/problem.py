@@ -281,8 +281,7 @@ def _field_sums(fields, r, pairs, batched: bool):
       channel (``batched=True``), for a residual linear in the model
       (:attr:`~brdffit.fitting.losses.Loss.linear_residual`: ``linear``, ``cosine``,
       ``cosine-in``, ``relative``). There the per-pair reductions are fused otherwise and a
-      pass over the cells takes several times as long (measurements: ``docs/log/fitting.md``,
-      "Field sums").
+      pass over the cells takes longer.
     """
     if not batched:
         r2 = r * r
