@@ -177,6 +177,24 @@ def test_two_lobe_ggx_starts_from_ggx_and_never_ends_above_it(cells, name):
     assert not any(e.startswith("base") for e, _ in events)
 
 
+@pytest.mark.parametrize("model_name, choices", [("lafortune-2", 3), ("two-lobe-ggx", 2)])
+def test_a_refined_fit_scans_the_starts_its_simpler_fit_maps_to(cells, model_name, choices):
+    """A model with several starts from its simpler fit (``Model.refines``) scans them, as the
+    start scan scans widths, and goes on from the lowest: one ``scan`` event per start after
+    the ``base`` event, and the fit converges honestly at or below the simpler model's cost."""
+    events = []
+    res = brdffit.fit(cells["alumina-oxide"], model_name, throw=False,
+                      progress=lambda e, info: events.append((e, info)))
+    check_honest(res, model_name)
+    names = [e for e, _ in events]
+    after = names.index("base")
+    scans = [info for e, info in events[after:] if e == "scan"]
+    assert [s["candidate"] for s in scans] == list(range(choices))
+    assert all(s["of"] == choices for s in scans)
+    base = events[after][1]
+    assert res.cost <= base["cost"] * (1 + 1e-6)
+
+
 @pytest.mark.parametrize("name", realistic.names())
 def test_beckmann_roughness_agrees_with_the_published_fits(cells, name):
     """Every embedded material: within a factor 1.5 of the geometric mean of Ngan 2005 and

@@ -16,12 +16,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 from half_vector_rule import half_vector_rule
 
 import brdffit
 import published
 from brdffit.fitting import Subsample
 from brdffit.models import published_params
+from brdffit.models.classic import lafortune_lobe
 from brdffit.terms.masking import G2_vgroove
 from brdffit.terms.ndf import Beckmann
 from data_formats import SampleSet
@@ -158,16 +160,36 @@ TRUTH = {
     "lafortune-2": {"diffuse": [0.1, 0.2, 0.3], "specular_1": [0.3, 0.2, 0.1], "psi_1": 2.4,
                     "exponent_1": 200.0, "specular_2": [0.1, 0.1, 0.1], "psi_2": 2.9,
                     "exponent_2": 4.0},
+    # a third lobe, faint, broad and towards grazing: the lobe the haze start alone misses
+    "lafortune-3": {"diffuse": [0.1, 0.2, 0.3], "specular_1": [0.3, 0.2, 0.1], "psi_1": 2.4,
+                    "exponent_1": 200.0, "specular_2": [0.1, 0.1, 0.1], "psi_2": 2.6,
+                    "exponent_2": 20.0, "specular_3": [0.05, 0.04, 0.03], "psi_3": 2.95,
+                    "exponent_3": 3.0},
 }
+
+
+def _lobes_sharpest_first(params) -> dict:
+    """``params`` with a many-lobe Lafortune's lobes ``_1, _2, …`` reordered by exponent."""
+    ks = sorted({k.rsplit("_", 1)[1] for k in params if k.startswith("exponent_")})
+    if not ks:
+        return dict(params)
+    order = sorted(ks, key=lambda k: -float(np.asarray(params[f"exponent_{k}"])))
+    out = {"diffuse": params["diffuse"]}
+    for new, old in zip(ks, order):
+        for p in ("specular", "psi", "exponent"):
+            out[f"{p}_{new}"] = params[f"{p}_{old}"]
+    return out
 
 
 @pytest.mark.parametrize("name", list(TRUTH))
 def test_parameters_recovered_from_synthetic_merl_cells(name):
+    """Recovered to 1e-3; a many-lobe Lafortune's lobes are a set, compared sharpest first."""
     truth = TRUTH[name]
     model = brdffit.get_model(name)
     res = brdffit.fit(_merl_cells(name, truth), name, subsample=Subsample(20000))
-    x = model.flatten(truth)
-    errs = dict(zip(model.flat_names(), np.abs(res.x - x) / np.abs(x)))
+    x = model.flatten(_lobes_sharpest_first(truth))
+    fitted = model.flatten(_lobes_sharpest_first(res.params))
+    errs = dict(zip(model.flat_names(), np.abs(fitted - x) / np.abs(x)))
     assert res.success, res.message
     assert max(errs.values()) <= 1e-3, (res.summary(), errs)
 
@@ -185,3 +207,28 @@ def test_bounds_contain_every_published_value(stem):
         model, params = published_params(fit)
         for name, value in params.items():
             model.param(name).check_bounds(value)  # raises naming the parameter
+
+
+@pytest.mark.parametrize("name", ["lafortune", "lafortune-2", "lafortune-3"])
+def test_lafortune_lobe_slope_in_psi_stays_bounded_at_its_edge_over_the_box(name):
+    """At the lowest exponent the box allows, the lobe's derivative in ``ψ`` stays bounded as
+    a cell approaches the lobe's edge (``d → 0⁺``): ``n dⁿ⁻¹`` blows up there for ``n < 1``,
+    and a least-squares model with such a parameter has no quadratic model near it."""
+    lowest = {p.lower for p in brdffit.get_model(name).params if p.name.startswith("exponent")}
+    assert len(lowest) == 1
+    n = float(lowest.pop())
+    psi = 0.8 * np.pi
+    wi = jnp.array([np.sin(0.6), 0.0, np.cos(0.6)])
+
+    def d(theta):  # the lobe's base d/max(|C_xy|, |C_z|) for wo at polar angle θ in wi's plane
+        return (np.cos(psi) * np.sin(0.6) * np.sin(theta)
+                + np.sin(psi) * np.cos(0.6) * np.cos(theta)) / abs(np.cos(psi))
+
+    slopes = []
+    for gap in (1e-3, 1e-6, 1e-9):
+        theta = brentq(lambda t: d(t) - gap, 0.0, 1.5)
+        wo = jnp.array([np.sin(theta), 0.0, np.cos(theta)])
+        assert 0.0 < float(d(theta)) < 2 * gap
+        slopes.append(abs(float(jax.grad(lafortune_lobe)(psi, n, wi, wo))))
+    assert np.all(np.isfinite(slopes))
+    assert slopes[-1] <= 2.0 * slopes[0] + 1e-6  # bounded as the gap closes, not ∝ gap^(n−1)

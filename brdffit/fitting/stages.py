@@ -6,7 +6,9 @@ Each start runs through up to three stages, each beginning where the previous on
    widths divided and multiplied by ``SCAN_FACTOR`` (8), each solved to the
    loose ``SCAN_FTOL`` on the first blocks holding ``SCAN_CELLS`` cells; the lowest cost goes
    on (a real table can have several minima: a narrow lobe on the peak, a wide one on the
-   glossy tail);
+   glossy tail). A model that refines a simpler one (``Model.refines``) scans the starts its
+   map gives instead, where it gives more than one (:attr:`Run.choices`): where the new lobe
+   goes is the choice there, and the simpler fit has already placed the others;
 2. **warm** (selections of at least ``WARM_MIN_CHUNKS`` blocks): the optimum on
    ``WARM_FRACTION`` of the blocks, a fraction of a full pass per step;
 3. **full**: the whole selection, to the optimality test (:class:`~.bounded.Optimality`).
@@ -143,6 +145,10 @@ class Run:
     #: joined before the first second-order term and when :func:`best_of` ends, also by an
     #: exception: a compile still running when the interpreter shuts down could crash it
     ahead: threading.Thread | None = None
+    #: the first start's scan candidates, where the fit gives more than one (the starts a
+    #: refined model's ``refines`` maps the simpler fit to), instead of :func:`candidates`;
+    #: the first start is the first of them
+    choices: tuple = ()
 
     def wait(self):
         """Wait for the second-order program compiled ahead, if any."""
@@ -231,13 +237,32 @@ class Run:
             return out.z, with_initial_step(solver, float(out.step_size))
         return z0, solver
 
+    def pick(self, solver, active: int) -> np.ndarray:
+        """The end point of the best of the :attr:`choices`, each solved on the first
+        ``active`` blocks to ``SCAN_FTOL``, as :meth:`scan` solves its candidates."""
+        best, loose = (np.inf, self.choices[0]), with_ftol(solver, SCAN_FTOL)
+        for k, z in enumerate(self.choices):
+            with self.events.in_stage("scan"):
+                out = self.solve(loose, z, active)
+            cost = float(out.cost)
+            self.events.emit("scan", candidate=k, of=len(self.choices), cost=cost,
+                             steps=int(out.steps))
+            if out.finite and cost < best[0]:
+                best = (cost, out.z)
+        return best[1]
+
     def start(self, solver, z0, k: int, scan: bool = True) -> Solved:
-        """Start ``k`` from ``z0`` through its stages (module docstring)."""
+        """Start ``k`` from ``z0`` through its stages (module docstring). With :attr:`choices`,
+        the first start's scan picks among them instead (:meth:`pick`)."""
         self.events.start = k
-        for i, (name, active) in enumerate(start_plan(self.problem, self.data, scan)):
+        choose = k == 0 and len(self.choices) > 1
+        blocks = self.data.wi.shape[0] // self.problem.chunks
+        stages = (plan(self.problem.chunks, blocks, True) if choose
+                  else start_plan(self.problem, self.data, scan))
+        for i, (name, active) in enumerate(stages):
             newton = i > 0  # Newton's model from the second stage on
             if name == "scan":
-                z0 = self.scan(solver, z0, active)
+                z0 = self.pick(solver, active) if choose else self.scan(solver, z0, active)
             elif name == "warm":
                 z0, solver = self.warm(solver, z0, active, newton)
             else:
@@ -245,9 +270,10 @@ class Run:
 
 
 def best_of(problem: Problem, solver, data: FitData, zs, max_steps: int, scan: bool,
-            events: Events) -> tuple[Solved, list[float]]:
+            events: Events, choices=()) -> tuple[Solved, list[float]]:
     """Solve from every start in ``zs``; the best solve (:meth:`Solved.better_than`) and the
-    cost of each start."""
+    cost of each start. ``choices`` (more than one): the first start scans these instead of
+    its :func:`candidates`, even where ``scan`` is off (:attr:`Run.choices`)."""
     # every stage after the first uses the second-order program: compile it meanwhile, unless
     # the model builds a table per pass (gtr's numerical Λ): its solve program's compilation
     # keeps both cores busy, and compiling the second-order program beside it made a cold fit
@@ -255,7 +281,7 @@ def best_of(problem: Problem, solver, data: FitData, zs, max_steps: int, scan: b
     staged = len(start_plan(problem, data, scan)) > 1
     ahead = (compile_second_ahead(problem, zs[0], data)
              if staged and problem.model.per_pass is None else None)
-    run = Run(problem, data, cost_floor(problem, data), max_steps, events, ahead)
+    run = Run(problem, data, cost_floor(problem, data), max_steps, events, ahead, tuple(choices))
     ftol = float(solver.ftol)
     best, costs = None, []
     try:

@@ -260,18 +260,24 @@ def start_phong(features, suffix: str = "") -> dict:
             "specular" + suffix: _ks(_peak(features) * 2.0 * np.pi / (n + 2.0))}
 
 
-#: The start of an added Lafortune lobe: this share of the fitted lobe's ``k_s``, in a lobe
-#: eight times broader (the haze around a peak).
+#: The starts of an added Lafortune lobe: this share of the fitted lobe's ``k_s`` ...
 ADDED_SHARE = 0.1
+#: ... in a lobe eight times broader than the broadest fitted one (the haze around a peak),
+#: and in a broad lobe of this exponent about the mirror direction and towards grazing
+#: (:data:`GRAZING_PSI`).
+HAZE, BROAD_EXPONENT, GRAZING_PSI = 1 / 8, 2.0, 0.95 * np.pi
 
 
 def _added_lobes(params, lobes: int) -> list[dict]:
-    """The start of a ``lobes``-lobe Lafortune from a fitted one with one lobe fewer
-    (``params``): the fitted lobes unchanged beside a new lobe eight times broader than the
-    broadest, just past the mirror direction (:data:`PSI_START`), with ``ADDED_SHARE`` of the
-    first lobe's ``k_s``; the fit then starts near the simpler optimum. (A second start with
-    the new lobe broad towards grazing, ``ψ = 0.95π``, ended at the same cost or above on the
-    materials tried, for twice the time.)"""
+    """The starts of a ``lobes``-lobe Lafortune from a fitted one with one lobe fewer
+    (``params``): the fitted lobes unchanged beside a new lobe with ``ADDED_SHARE`` of the first
+    lobe's ``k_s``, in three places the data may want it (:data:`HAZE`): eight times broader
+    than the broadest fitted lobe (the haze around a peak), and broad (``n = 2``) about the
+    mirror direction and towards grazing. The fit scans them on a sample of the cells and
+    goes on from the best (:meth:`brdffit.fitting.stages.Run.scan`). From the haze alone a new
+    lobe the data do not want there can stay where it started (the simpler optimum with a
+    faint lobe is nearly stationary) or crawl towards its place for dozens of full-table
+    steps."""
     old = [""] if lobes == 2 else [f"_{k}" for k in range(1, lobes)]
     start = {"diffuse": params["diffuse"]}
     for k, o in enumerate(old, 1):
@@ -279,9 +285,11 @@ def _added_lobes(params, lobes: int) -> list[dict]:
                       f"exponent_{k}": params["exponent" + o]})
     n = float(np.min([params["exponent" + o] for o in old]))
     new = f"_{lobes}"
-    start.update({"specular" + new: ADDED_SHARE * np.asarray(params["specular" + old[0]]),
-                  "psi" + new: PSI_START, "exponent" + new: max(1.0, n / 8.0)})
-    return [start]
+    ks = ADDED_SHARE * np.asarray(params["specular" + old[0]])
+    places = ((PSI_START, max(LAFORTUNE_MIN_EXPONENT, n * HAZE)), (PSI_START, BROAD_EXPONENT),
+              (GRAZING_PSI, BROAD_EXPONENT))
+    return [{**start, "specular" + new: ks, "psi" + new: psi, "exponent" + new: exponent}
+            for psi, exponent in places]
 
 
 def start_lafortune(features, lobes: int) -> dict:
@@ -292,7 +300,8 @@ def start_lafortune(features, lobes: int) -> dict:
     for k in range(2, lobes + 1):
         out.update({f"specular_{k}": ADDED_SHARE * np.asarray(first["specular_1"]),
                     f"psi_{k}": PSI_START,
-                    f"exponent_{k}": max(1.0, first["exponent_1"] / 8.0 ** (k - 1))})
+                    f"exponent_{k}": max(LAFORTUNE_MIN_EXPONENT,
+                                         first["exponent_1"] / 8.0 ** (k - 1))})
     return out
 
 
@@ -347,6 +356,12 @@ _register("ngan-blinn-phong",
 #: ``ψ`` up to ``π`` (``C_z ≥ 0``, as in every published fit). With ``C_z < 0`` allowed (up to
 #: ``5π/4``) the fabrics' fits ran on to that bound too, in 30–60 steps instead of 3–6.
 PSI_MAX = float(np.pi)
+#: The Lafortune lobe's exponent from 1 (a cosine lobe): below it the residuals lose their
+#: derivative in ``ψ`` at the lobe's edge, ``∂/∂ψ max(0, d)ⁿ = n dⁿ⁻¹ ∂d/∂ψ → ∞`` as
+#: ``d → 0⁺``, so no quadratic model holds near a lobe whose edge crosses the cells, and a
+#: faint broad lobe crawls there (every published fit has ``n ≥ 2.29``). The modified Phong
+#: lobe of ``ngan-blinn-phong`` keeps 0.5: no parameter of it moves the lobe's edge.
+LAFORTUNE_MIN_EXPONENT = 1.0
 
 
 def _lafortune_params(lobes):
@@ -358,8 +373,8 @@ def _lafortune_params(lobes):
                   per_channel=True),
             Param("psi" + k, (), 0.0, PSI_MAX, MIRROR,
                   f"direction ψ of (C_xy, C_z) = (cos ψ, sin ψ){which}: 3π/4 the mirror lobe"),
-            Param("exponent" + k, (), 0.5, 1e6, 100.0, f"exponent n{which} (bbm's sharpness)",
-                  log=True),
+            Param("exponent" + k, (), LAFORTUNE_MIN_EXPONENT, 1e6, 100.0,
+                  f"exponent n{which} (bbm's sharpness)", log=True),
         ]
     return tuple(params)
 

@@ -147,10 +147,11 @@ class Model:
     ``refines`` (optional) names a simpler registered model that this one contains, with the
     map from that model's fitted parameters to starts of this one: ``(name, fn)``,
     ``fn(params) -> [{name: value}, ...]``. Unless the user gives ``init``, the fitter first
-    fits the simpler model on the same cells and then starts this one from each dict
-    (parameters a dict does not name keep the data-driven start); with a start that reproduces
-    the simpler model exactly (``two-lobe-ggx`` with its blend at 0) the fit begins at the
-    simpler model's cost.
+    fits the simpler model on the same cells and then starts this one from the dicts
+    (parameters a dict does not name keep the data-driven start): from the one dict, or from
+    the best of several after the start scan solves each on a sample of the cells
+    (:mod:`brdffit.fitting.stages`); with a start that reproduces the simpler model exactly
+    (``two-lobe-ggx`` with its blend at 0) the fit begins at the simpler model's cost.
 
     ``derived`` (optional) gives the quantities a result reports beside the parameters, which
     the model computes from them: ``derived(params) -> {name: value}`` (NumPy in, NumPy out;
