@@ -193,6 +193,13 @@ def test_a_refined_fit_scans_the_starts_its_simpler_fit_maps_to(cells, model_nam
     assert all(s["of"] == choices for s in scans)
     base = events[after][1]
     assert res.cost <= base["cost"] * (1 + 1e-6)
+    # with the scan off, every start is fitted to the end and the best kept
+    events.clear()
+    off = brdffit.fit(cells["alumina-oxide"], model_name, scan=False, throw=False,
+                      progress=lambda e, info: events.append((e, info)))
+    check_honest(off, model_name)
+    assert not any(e == "scan" for e, _ in events)
+    assert len(off.starts) == choices and off.cost == pytest.approx(min(off.starts), rel=1e-12)
 
 
 @pytest.mark.parametrize("name", realistic.names())

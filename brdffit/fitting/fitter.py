@@ -77,6 +77,8 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
     if model.refines is not None and settings.init is None:
         (prep, first), scan = refined(prep, solver, events), False
     zs = starts(prep.z0, settings.multistart, settings.seed)
+    if first and not settings.scan:  # no scan: every start of the simpler fit to the end
+        zs, first = first + zs[1:], []
     best, costs = best_of(prep.problem, solver, prep.selection.data, zs, settings.max_steps,
                           scan, events, first)
     t2 = time.perf_counter()
@@ -89,8 +91,8 @@ def refined(prep: Prepared, solver, events: Events) -> tuple[Prepared, list[np.n
     ``fixed`` and ``bounds`` (they name this model's parameters), from its own data-driven start
     and scan; ``zs`` are the box coordinates of the starts ``refines`` maps its optimum to
     (each clamped to this fit's bounds; fixed scalars keep their values; the first start's
-    scan picks among them, :func:`.stages.best_of`), and ``prep`` takes the first as its
-    starting point. The simpler fit's events carry the prefix ``base-``; a
+    scan picks among them, :func:`.stages.best_of`, or with the scan off each is fitted to the
+    end), and ``prep`` takes the first as its starting point. The simpler fit's events carry the prefix ``base-``; a
     ``base`` event then reports its ``model``, ``cost``, ``steps`` and ``success``."""
     name, to_starts = prep.model.refines
     simple = get_model(name)

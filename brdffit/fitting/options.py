@@ -109,7 +109,8 @@ class Settings:
         scan: before the warm start, solve a few candidate starts with shifted lobe widths on a
             small evenly spread subset of the cells and keep the best
             (:mod:`brdffit.fitting.stages`); ``False`` starts from the data-driven (or given)
-            start alone.
+            start alone. A model that refines a simpler one scans the starts the simpler fit
+            maps to; ``False`` fits each of them to the end and keeps the best.
         precision: ``"float64"`` or ``"float32"`` model evaluation (products are accumulated in
             float64 either way when x64 is enabled); default :func:`default_precision`.
         covariance: ``"sandwich"`` (default, robust to heteroscedastic residuals) or ``"gn"``
