@@ -92,8 +92,9 @@ def refined(prep: Prepared, solver, events: Events) -> tuple[Prepared, list[np.n
     and scan; ``zs`` are the box coordinates of the starts ``refines`` maps its optimum to
     (each clamped to this fit's bounds; fixed scalars keep their values; the first start's
     scan picks among them, :func:`.stages.best_of`, or with the scan off each is fitted to the
-    end), and ``prep`` takes the first as its starting point. The simpler fit's events carry the prefix ``base-``; a
-    ``base`` event then reports its ``model``, ``cost``, ``steps`` and ``success``."""
+    end), and ``prep`` takes the first as its starting point. The simpler fit's events carry
+    the prefix ``base-``; a ``base`` event then reports its ``model``, ``cost``, ``steps`` and
+    ``success``."""
     name, to_starts = prep.model.refines
     simple = get_model(name)
     settings = dataclasses.replace(prep.settings, fixed=None, bounds=None)

@@ -271,10 +271,11 @@ HAZE, BROAD_EXPONENT, GRAZING_PSI = 1 / 8, 2.0, 0.95 * np.pi
 def _added_lobes(params, lobes: int) -> list[dict]:
     """The starts of a ``lobes``-lobe Lafortune from a fitted one with one lobe fewer
     (``params``): the fitted lobes unchanged beside a new lobe with ``ADDED_SHARE`` of the first
-    lobe's ``k_s``, in three places the data may want it (:data:`HAZE`): eight times broader
-    than the broadest fitted lobe (the haze around a peak), and broad (``n = 2``) about the
-    mirror direction and towards grazing. The fit scans them on a sample of the cells and
-    goes on from the best (:meth:`brdffit.fitting.stages.Run.scan`). From the haze alone a new
+    lobe's ``k_s``, in three places the data may want it: ``HAZE`` times the exponent of the
+    broadest fitted lobe (eight times broader: the haze around a peak), and broad
+    (``BROAD_EXPONENT``) about the mirror direction and towards grazing (``GRAZING_PSI``). The
+    fit scans them on a sample of the cells and goes on from the best
+    (:meth:`brdffit.fitting.stages.Run.pick`). From the haze alone a new
     lobe the data do not want there can stay where it started (the simpler optimum with a
     faint lobe is nearly stationary) or crawl towards its place for dozens of full-table
     steps."""
