@@ -100,10 +100,10 @@ def _lambert_with_a_peak(share: float, alpha: float = 0.1, n: int = 40_000, seed
 
 def test_a_peak_within_the_scatter_of_a_matte_table_reads_as_broad():
     """A lobe above the floor but lower than ``FLAT_PEAK`` of the diffuse level has no width to
-    read: it reads as the
-    broadest start (``α`` 0.9), not as whatever width the scatter of the bins nearest the peak
-    suggests (narrow: the realistic fabrics and foam read 0.002, started a sharp lobe and walked
-    it broad for tens of steps). A peak well above the diffuse level keeps its measured width."""
+    read: it reads as the broadest start (``α`` 0.9), not as whatever width the scatter of the
+    bins nearest the peak suggests (narrow: the realistic fabrics and foam read 0.002, started a
+    sharp lobe and walked it broad for tens of steps). A peak well above the diffuse level keeps
+    its measured width."""
     from brdffit.fitting.start import ALPHA_RANGE, FLAT_PEAK, NO_PEAK, measure
 
     rgb, wi, wo = _lambert_with_a_peak(share=0.2 * FLAT_PEAK)

@@ -124,11 +124,14 @@ def plan(chunks: int, block_cells: int, scan: bool) -> list[tuple[str, int]]:
     return stages
 
 
-def start_plan(problem: Problem, data: FitData, scan: bool) -> list[tuple[str, int]]:
-    """The stages of every start of a fit (:func:`plan`): the scan only where ``scan`` is
-    asked for and the model has a lobe width to scan (:func:`scanned`)."""
+def start_plan(problem: Problem, data: FitData, scan: bool,
+               choices: bool = False) -> list[tuple[str, int]]:
+    """The stages of a start of a fit (:func:`plan`): the scan where the start has
+    :attr:`Run.choices` to pick among, or where ``scan`` is asked for and the model has a lobe
+    width to scan (:func:`scanned`)."""
     chunks = problem.chunks
-    return plan(chunks, data.wi.shape[0] // chunks, scan and bool(np.any(scanned(problem))))
+    return plan(chunks, data.wi.shape[0] // chunks,
+                choices or (scan and bool(np.any(scanned(problem)))))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -212,12 +215,12 @@ class Run:
             model = newton and not model  # a round that ran out: the other model next
         return eqx.tree_at(lambda s: s.steps, out, np.asarray(total))
 
-    def scan(self, solver, z0, active: int) -> np.ndarray:
-        """The end point of the best of the :func:`candidates`, each solved on the first
-        ``active`` blocks to ``SCAN_FTOL`` (costs compared on the same cells)."""
+    def scan(self, solver, cands, active: int) -> np.ndarray:
+        """The end point of the best of ``cands`` (the :func:`candidates` of a start, or the
+        :attr:`choices`), each solved on the first ``active`` blocks to ``SCAN_FTOL`` (costs
+        compared on the same cells); the first candidate if none ends finite."""
         loose = with_ftol(solver, SCAN_FTOL)
-        best = (np.inf, z0)
-        cands = candidates(self.problem, z0)
+        best = (np.inf, cands[0])
         for k, z in enumerate(cands):
             with self.events.in_stage("scan"):
                 out = self.solve(loose, z, active)
@@ -237,32 +240,16 @@ class Run:
             return out.z, with_initial_step(solver, float(out.step_size))
         return z0, solver
 
-    def pick(self, solver, active: int) -> np.ndarray:
-        """The end point of the best of the :attr:`choices`, each solved on the first
-        ``active`` blocks to ``SCAN_FTOL``, as :meth:`scan` solves its candidates."""
-        best, loose = (np.inf, self.choices[0]), with_ftol(solver, SCAN_FTOL)
-        for k, z in enumerate(self.choices):
-            with self.events.in_stage("scan"):
-                out = self.solve(loose, z, active)
-            cost = float(out.cost)
-            self.events.emit("scan", candidate=k, of=len(self.choices), cost=cost,
-                             steps=int(out.steps))
-            if out.finite and cost < best[0]:
-                best = (cost, out.z)
-        return best[1]
-
     def start(self, solver, z0, k: int, scan: bool = True) -> Solved:
         """Start ``k`` from ``z0`` through its stages (module docstring). With :attr:`choices`,
-        the first start's scan picks among them instead (:meth:`pick`)."""
+        the first start's scan picks among them instead of its :func:`candidates`."""
         self.events.start = k
         choose = k == 0 and len(self.choices) > 1
-        blocks = self.data.wi.shape[0] // self.problem.chunks
-        stages = (plan(self.problem.chunks, blocks, True) if choose
-                  else start_plan(self.problem, self.data, scan))
-        for i, (name, active) in enumerate(stages):
+        for i, (name, active) in enumerate(start_plan(self.problem, self.data, scan, choose)):
             newton = i > 0  # Newton's model from the second stage on
             if name == "scan":
-                z0 = self.pick(solver, active) if choose else self.scan(solver, z0, active)
+                cands = list(self.choices) if choose else candidates(self.problem, z0)
+                z0 = self.scan(solver, cands, active)
             elif name == "warm":
                 z0, solver = self.warm(solver, z0, active, newton)
             else:
@@ -273,7 +260,8 @@ def best_of(problem: Problem, solver, data: FitData, zs, max_steps: int, scan: b
             events: Events, choices=()) -> tuple[Solved, list[float]]:
     """Solve from every start in ``zs``; the best solve (:meth:`Solved.better_than`) and the
     cost of each start. ``choices`` (more than one): the first start scans these instead of
-    its :func:`candidates`, even where ``scan`` is off (:attr:`Run.choices`)."""
+    its :func:`candidates`, whatever ``scan`` says (:attr:`Run.choices`; ``scan`` is off for
+    a refined model, whose other lobes its simpler fit has placed)."""
     # every stage after the first uses the second-order program: compile it meanwhile, unless
     # the model builds a table per pass (gtr's numerical Λ): its solve program's compilation
     # keeps both cores busy, and compiling the second-order program beside it made a cold fit

@@ -11,7 +11,8 @@ difference angle, Rusinkiewicz 1998):
   (RTR eq. 9.41) ``D(θh)/D(0) = 1/2`` at ``tan²θh = α²(√2 − 1)``, so
   ``α ≈ tan θ½ / 0.6436``; at the peak ``f ≈ F0 D(0) / (4 cos²θd)`` (RTR eq. 9.34 with
   ``G2 ≈ 1``), so ``F0 ≈ 4π α² cos²θd H``. A peak above :data:`NO_PEAK` but lower than
-  :data:`FLAT_PEAK` of the diffuse level has no width to read and reads as broad (``θ½ = 60°``).
+  :data:`FLAT_PEAK` of the diffuse level has no width to read and reads as broad
+  (``θ½ = 60°``).
 * **anisotropy** ``α_x, α_y`` and the azimuth ``φ_t`` of the ``α_x`` axis: anisotropic GGX
   (RTR eq. 9.53) is ``D ∝ h_z⁻⁴ (1 + sᵀAs)⁻²`` in the half vector's slope
   ``s = (h_x, h_y)/h_z``, ``A = R diag(α_x⁻², α_y⁻²) Rᵀ`` with ``R`` the rotation by ``φ_t``. With

@@ -275,7 +275,7 @@ def _added_lobes(params, lobes: int) -> list[dict]:
     broadest fitted lobe (eight times broader: the haze around a peak), and broad
     (``BROAD_EXPONENT``) about the mirror direction and towards grazing (``GRAZING_PSI``). The
     fit scans them on a sample of the cells and goes on from the best
-    (:meth:`brdffit.fitting.stages.Run.pick`). From the haze alone a new
+    (:meth:`brdffit.fitting.stages.Run.scan`). From the haze alone a new
     lobe the data do not want there can stay where it started (the simpler optimum with a
     faint lobe is nearly stationary) or crawl towards its place for dozens of full-table
     steps."""
@@ -294,7 +294,8 @@ def _added_lobes(params, lobes: int) -> list[dict]:
 
 
 def start_lafortune(features, lobes: int) -> dict:
-    """Lobe 1 as :func:`start_phong`; each further lobe broader (exponent ``n/8``, ``n/64``) with ``ADDED_SHARE`` of its ``k_s``: the start of a
+    """Lobe 1 as :func:`start_phong`; each further lobe ``HAZE`` times as sharp as the one
+    before (exponent ``n/8``, ``n/64``) with ``ADDED_SHARE`` of its ``k_s``: the start of a
     many-lobe fit that is itself the base of another (``lafortune-2`` under ``lafortune-3``)."""
     first = start_phong(features, "_1")
     out = dict(first)
@@ -302,7 +303,7 @@ def start_lafortune(features, lobes: int) -> dict:
         out.update({f"specular_{k}": ADDED_SHARE * np.asarray(first["specular_1"]),
                     f"psi_{k}": PSI_START,
                     f"exponent_{k}": max(LAFORTUNE_MIN_EXPONENT,
-                                         first["exponent_1"] / 8.0 ** (k - 1))})
+                                         first["exponent_1"] * HAZE ** (k - 1))})
     return out
 
 
