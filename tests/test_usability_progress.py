@@ -164,6 +164,22 @@ def test_a_signal_closes_the_bar_before_its_line():
     assert out.getvalue() == before
 
 
+def _read_pty(master: int, until: str, timeout: float = 10.0) -> str:
+    """What a pseudo-terminal's master side has to read, up to the first read holding ``until``
+    or ``timeout`` seconds. The kernel hands what the slave side wrote to the master side
+    asynchronously (its flip buffer is pushed by a work queue), so on a loaded machine one read
+    can return only the first part of what was written."""
+    import os
+    import select
+    import time
+
+    text, deadline = "", time.monotonic() + timeout
+    while until not in text and (left := deadline - time.monotonic()) > 0:
+        if select.select([master], [], [], left)[0]:
+            text += os.read(master, 65536).decode(errors="replace")
+    return text
+
+
 def test_the_bar_shows_on_a_terminal_that_does_not_tell_its_size():
     """A pseudo-terminal nobody sized says 0 × 0: tqdm took it for -1 columns and -1 rows and
     drew nothing at all (before, also the old bar)."""
@@ -180,7 +196,7 @@ def test_the_bar_shows_on_a_terminal_that_does_not_tell_its_size():
             bar("scan-step", {"start": 0, "step": k, "cost": 1.0 / (k + 1)})
         bar("done", {"success": True, "cost": 0.25})
         tty.flush()
-        text = os.read(master, 65536).decode(errors="replace")
+        text = _read_pty(master, until="converged")
     finally:
         tty.close()
         os.close(master)
