@@ -19,8 +19,9 @@ float32); with ``normalize`` every table of the slice is divided by the total ``
 bilinear density integrates to 1. ``sample`` inverts the marginal CDF of ``y`` (piecewise
 quadratic, ``sample_segment``), then the conditional CDF of ``x`` given ``y``; ``invert`` is its
 exact inverse, and ``eval`` the bilinear density. As in Mitsuba, tables are float32 (the CDFs and
-normalized values are rounded exactly as Mitsuba rounds them); the arithmetic on them here is
-float64, so results agree with Mitsuba's float32 arithmetic to float32 rounding.
+normalized values are rounded exactly as Mitsuba rounds them, and kept in float32); the
+arithmetic on them here is float64, so results agree with Mitsuba's float32 arithmetic to
+float32 rounding.
 """
 
 from __future__ import annotations
@@ -31,6 +32,18 @@ __all__ = ["Marginal2D"]
 
 _EPS = float(np.finfo(np.float32).eps) / 2  # dr::Epsilon<float> = 2^-24
 _ONE_MINUS_EPS = float(np.nextafter(np.float32(1), np.float32(0)))
+
+
+#: Values per block of slices that :class:`Marginal2D` accumulates in float64 at a time: about
+#: 8 MiB for each float64 temporary, whatever the table's size.
+BUILD_BLOCK_VALUES = 1 << 20
+
+
+def _slice_blocks(n: int, per_slice: int):
+    """``(start, stop)`` of consecutive blocks of the ``n`` slices, each holding at most
+    :data:`BUILD_BLOCK_VALUES` values (at least one slice)."""
+    step = max(1, BUILD_BLOCK_VALUES // per_slice)
+    return [(a, min(n, a + step)) for a in range(0, n, step)]
 
 
 def _lerp(a, b, t):
@@ -82,28 +95,39 @@ class Marginal2D:
             self.data, self.cond, self.marg = self._scale_only(flat, normalize), None, None
 
     def _build_cdfs(self, flat, normalize):
+        """``(data, cond, marg)``, float32 as Mitsuba stores them: the (normalized) values
+        ``(slices, H·W)``, the rows' conditional CDFs ``(slices, H·(W−1))`` and the marginal
+        CDF ``(slices, H−1)``, accumulated in float64 a block of slices at a time
+        (:func:`_slice_blocks`), so the build needs about the tables' own bytes beside them."""
         h, w = self.h, self.w
-        d = flat.astype(np.float64)
-        cond_acc = np.cumsum((0.5 / (w - 1)) * (d[:, :, :-1] + d[:, :, 1:]), axis=2)
-        row_sum = cond_acc[:, :, -1]
-        marg_acc = np.cumsum((0.5 / (h - 1)) * (row_sum[:, :-1] + row_sum[:, 1:]), axis=1)
-        cond = cond_acc.astype(np.float32)
-        marg = marg_acc.astype(np.float32)
-        norm = ((1.0 / marg_acc[:, -1]).astype(np.float32) if normalize
-                else np.ones(len(flat), np.float32))
-        cond = cond * norm[:, None, None]
-        marg = marg * norm[:, None]
-        data = flat * norm[:, None, None]
-        return (data.reshape(len(flat), -1).astype(np.float64),
-                cond.reshape(len(flat), -1).astype(np.float64), marg.astype(np.float64))
+        n = len(flat)
+        data = np.empty((n, h * w), np.float32)
+        cond = np.empty((n, h * (w - 1)), np.float32)
+        marg = np.empty((n, h - 1), np.float32)
+        for a, b in _slice_blocks(n, h * w):
+            d = flat[a:b].astype(np.float64)
+            cond_acc = np.cumsum((0.5 / (w - 1)) * (d[:, :, :-1] + d[:, :, 1:]), axis=2)
+            del d
+            row_sum = cond_acc[:, :, -1]
+            marg_acc = np.cumsum((0.5 / (h - 1)) * (row_sum[:, :-1] + row_sum[:, 1:]), axis=1)
+            norm = ((1.0 / marg_acc[:, -1]).astype(np.float32) if normalize
+                    else np.ones(b - a, np.float32))
+            cond[a:b] = (cond_acc.astype(np.float32) * norm[:, None, None]).reshape(b - a, -1)
+            del cond_acc
+            marg[a:b] = marg_acc.astype(np.float32) * norm[:, None]
+            data[a:b] = (flat[a:b] * norm[:, None, None]).reshape(b - a, -1)
+        return data, cond, marg
 
     def _scale_only(self, flat, normalize):
+        """The (normalized) values ``(slices, H·W)``, float32 (:meth:`_build_cdfs`)."""
+        out = flat.reshape(len(flat), -1).copy()
         if normalize:
-            d = flat.astype(np.float64)
-            s = (d[:, :-1, :-1] + d[:, :-1, 1:] + d[:, 1:, :-1] + d[:, 1:, 1:]).sum(axis=(1, 2))
-            norm = (1.0 / ((0.5 / (self.w - 1)) * (0.5 / (self.h - 1)) * s)).astype(np.float32)
-            flat = flat * norm[:, None, None]
-        return flat.reshape(len(flat), -1).astype(np.float64)
+            for a, b in _slice_blocks(len(flat), self.h * self.w):
+                d = flat[a:b].astype(np.float64)
+                s = (d[:, :-1, :-1] + d[:, :-1, 1:] + d[:, 1:, :-1] + d[:, 1:, 1:]).sum(axis=(1, 2))
+                norm = (1.0 / ((0.5 / (self.w - 1)) * (0.5 / (self.h - 1)) * s)).astype(np.float32)
+                out[a:b] = (flat[a:b] * norm[:, None, None]).reshape(b - a, -1)
+        return out
 
     # -- parameters ------------------------------------------------------------------------------
 
