@@ -135,8 +135,9 @@ def box_step(jtj, g, z, damping):
     return jnp.clip(d, lo, hi)
 
 
-def _gn_parts(f_info):
-    """``(JᵀJ, Jᵀr, ½‖r‖²)`` of the normal form's ``(J̃, r̃)``."""
+def gauss_newton_parts(f_info):
+    """``(J̃ᵀJ̃, J̃ᵀr̃, ½‖r̃‖²)`` of the normal form's ``(J̃, r̃)`` (an optimistix function
+    information): the solver's local quadratic model, which :func:`optimality` tests."""
     jac, res = f_info.jac.as_matrix(), f_info.residual
     return jac.T @ jac, jac.T @ res, 0.5 * jnp.sum(res**2)
 
@@ -218,7 +219,7 @@ class _BoxState(eqx.Module):
 def _queried(y, f_info, kept) -> _BoxState:
     """The :class:`_BoxState` of a descent queried at ``y`` (``f_info`` its information),
     keeping ``kept`` (the information itself, or a wrapped descent's own state)."""
-    jtj, g, cost = _gn_parts(f_info)
+    jtj, g, cost = gauss_newton_parts(f_info)
     return _BoxState(y, kept, optimality(jtj, g, cost, y)[0].astype(y.dtype))
 
 
@@ -232,7 +233,7 @@ def _omega(state, y):
     descent = state.descent_state
     if isinstance(descent, _BoxState):
         return descent.omega
-    jtj, g, cost = _gn_parts(state.f_info)
+    jtj, g, cost = gauss_newton_parts(state.f_info)
     return optimality(jtj, g, cost, y)[0]
 
 
@@ -256,7 +257,7 @@ class BoxDampedNewtonDescent(optx.DampedNewtonDescent):
         return _queried(y, f_info, f_info)
 
     def step(self, step_size, state):
-        jtj, g, _ = _gn_parts(state.f_info)
+        jtj, g, _ = gauss_newton_parts(state.f_info)
         d2 = jnp.diagonal(jtj)
         d2 = jnp.maximum(d2, SCALING_FLOOR * jnp.max(d2) + jnp.finfo(d2.dtype).tiny)
         lam = GN_RIDGE if self.undamped else 1.0 / jnp.maximum(step_size, 1e-300)

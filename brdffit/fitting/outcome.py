@@ -88,11 +88,19 @@ def result_name(result) -> str:
     return "unknown"
 
 
-def verdict(best: Solved, ftol: float) -> Verdict:
+def verdict(best: Solved, ftol: float, lost=None) -> Verdict:
     """Success only at a finite point where the cost depends on some free parameter, and
     either optimistix succeeded and the optimality test ``ω ≤ ftol`` holds, or the stillness
     test ended the solve (status ``still``: :func:`.stages.still`, with ``ω`` in the
-    message)."""
+    message).
+
+    ``lost`` (a boolean mask over the free scalars: those the data do not identify,
+    :func:`.statistics.identified_covariance`) restricts the optimality test to the others
+    when it fails over all of them: along a direction the cost barely depends on, the model's
+    step ``g²/(2 JᵀJ)`` divides two vanishing numbers, and near a cost of zero (an exact fit)
+    it is a sizeable fraction of nothing (``ggx-aniso`` on an isotropic lobe, whose
+    ``frame_angle`` does nothing). Such a scalar is reported as not identified and gets no
+    standard error; the fit is optimal in the scalars the data determine."""
     if not best.finite:
         return Verdict(False, "nonfinite", (
             "the solver produced non-finite parameters or cost; the result reports the starting "
@@ -112,6 +120,12 @@ def verdict(best: Solved, ftol: float) -> Verdict:
             message += MAX_STEPS_HINT
         return Verdict(False, status, message)
     omega = float(best.omega)
+    if not omega <= ftol and lost is not None and np.any(lost) and not np.all(lost):
+        held = best.omega_over(~np.asarray(lost, bool))
+        if held <= ftol:
+            return _if_identified(best, Verdict(True, status, (
+                f"the optimality test held over the parameters the data identify (ω = "
+                f"{held:.2g} ≤ ftol = {ftol:g}; {omega:.2g} with those they do not)")))
     if not omega <= ftol:
         return Verdict(False, "stalled", (
             f"the solver stopped moving before the optimality test held (the Gauss-Newton step "
@@ -244,7 +258,7 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
         best.jtj, best.meat, best.dxdz, 2 * cost, float(best.m), bound == 0, s.covariance)
     if not best.finite:
         lost = np.zeros_like(lost)
-    v = verdict(best, s.ftol)
+    v = verdict(best, s.ftol, lost if best.finite else None)
     if v.status != "degenerate":  # a cost that depends on nothing says it first
         v = data_verdict(prep.selection, len(free)) or data_determined(v, bound, lost)
     names = model.flat_names()

@@ -22,7 +22,7 @@ import optimistix as optx
 from .data import FitData
 from .normal_form import normal_form, over_blocks
 from .problem import Problem
-from .bounded import COST_NOISE, end_optimality, with_history
+from .bounded import COST_NOISE, end_optimality, gauss_newton_parts, optimality, with_history
 from .statistics import N_CELL_SUMS, metrics_from
 
 #: XLA CPU options for the fitting program (per program: ``jax.config`` and ``XLA_FLAGS`` are
@@ -59,6 +59,9 @@ class Solved(eqx.Module):
         steps: solver steps taken.
         cost: ``½ Σ r²`` over the solve's cells (without the cost floor).
         omega: the optimality measure ``ω`` (:func:`.bounded.optimality`).
+        gn: the solver's Gauss–Newton model at the end point, ``(J̃ᵀJ̃, J̃ᵀr̃, ½‖r̃‖²)`` of the
+            normal form (:func:`.bounded.gauss_newton_parts`): what ``omega`` is computed from,
+            kept so that :meth:`omega_over` can test a subset of the scalars.
         jtj, meat: ``JᵀJ`` and ``Jᵀdiag(r²)J`` with respect to ``z``.
         dxdz: ``∂x/∂z`` per free scalar (the box map is elementwise).
         metrics: the error figures (:func:`.statistics.metrics_from`).
@@ -76,6 +79,7 @@ class Solved(eqx.Module):
     steps: jax.Array
     cost: jax.Array
     omega: jax.Array
+    gn: tuple
     jtj: jax.Array
     meat: jax.Array
     dxdz: jax.Array
@@ -104,6 +108,17 @@ class Solved(eqx.Module):
         """The cost, or ``inf`` where it is not finite."""
         cost = float(self.cost)
         return cost if np.isfinite(cost) else np.inf
+
+    def omega_over(self, keep) -> float:
+        """``ω`` (:func:`.bounded.optimality`) of the solver's model restricted to the free
+        scalars where ``keep`` (a boolean mask over them), the others held where they are: the
+        fraction of the cost a step in those scalars alone could still remove."""
+        keep = np.flatnonzero(np.asarray(keep, bool))
+        jtj, g, cost = (np.asarray(a, float) for a in self.gn)
+        z = np.asarray(self.z, float)
+        omega, _ = optimality(jnp.asarray(jtj[np.ix_(keep, keep)]), jnp.asarray(g[keep]),
+                              jnp.asarray(cost), jnp.asarray(z[keep]))
+        return float(omega)
 
     def converged(self, ftol: float) -> bool:
         """A finite point where optimistix succeeded and the optimality test ``ω ≤ ftol``
@@ -134,9 +149,10 @@ def _solve(problem: Problem, solver, z0, data, floor, max_steps: int, active, se
     _, dxdz = jax.jvp(problem.physical, (sol.value,), (jnp.ones_like(sol.value),))
     metrics, cost, m = metrics_from(aux["sum_r2"], aux["extra"])
     step = getattr(state.search_state, "step_size", jnp.nan)
+    gn = tuple(a.astype(z0.dtype) for a in gauss_newton_parts(state.f_info))
     return Solved(
         z=sol.value, result=sol.result, steps=sol.stats["num_steps"], cost=cost.astype(z0.dtype),
-        omega=end_optimality(sol).astype(z0.dtype), jtj=aux["jtj"], meat=aux["meat"], dxdz=dxdz,
+        omega=end_optimality(sol).astype(z0.dtype), gn=gn, jtj=aux["jtj"], meat=aux["meat"], dxdz=dxdz,
         metrics=metrics, m=m, step_size=jnp.asarray(step, z0.dtype),
         costs=sol.state.costs.astype(z0.dtype),
     )
