@@ -35,6 +35,12 @@ class SampleSet:
             than others says so here (a MERL table: the width in ``θh`` of each cell, which
             undoes the format's ``θh`` warp, :func:`data_formats.merl.theta_h_weights`), and
             the fitter's default ``weighting="angles"`` multiplies each squared residual by it.
+        value_epsilon: the relative precision of ``rgb`` as the source stored it: the epsilon
+            of its float type (``np.finfo(np.float32).eps`` for an RGL file's float32 tables),
+            or 0 for values stored in float64 (MERL tables) or of unknown precision. A fit
+            judges its optimality against at least the cost this rounding makes
+            (:meth:`brdffit.fitting.problem.Problem.cost_floor`): no model is known to be
+            closer to the data than their storage.
     """
 
     wi: np.ndarray
@@ -46,10 +52,14 @@ class SampleSet:
     sigma: np.ndarray | None = None
     channels: int = 3
     weight: np.ndarray | None = None
+    value_epsilon: float = 0.0
 
     def __post_init__(self):
         if self.channels not in (1, 3):
             raise ValueError(f"SampleSet.channels must be 1 or 3, got {self.channels!r}")
+        if not 0.0 <= self.value_epsilon < 1.0:
+            raise ValueError(f"SampleSet.value_epsilon must be in [0, 1), got "
+                             f"{self.value_epsilon!r}")
         n = len(self.rgb)
         for field in ("wi", "wo", "rgb"):
             arr = getattr(self, field)

@@ -138,6 +138,9 @@ class FitData(eqx.Module):
     rgb: jax.Array  # measured f_r, zero where masked
     target: jax.Array  # g(rgb)
     sqrt_weight: jax.Array  # (n, 3); zero where masked
+    #: the relative precision of the measured values as stored (``SampleSet.value_epsilon``):
+    #: static, so one value per table layout (:meth:`.problem.Problem.cost_floor`)
+    value_epsilon: float = eqx.field(static=True, default=0.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -253,7 +256,8 @@ def select(samples, loss: Loss, *, cutoff=None, subsample=None, seed=0, dtype="f
     arrays = [jax.device_put(a) for a in (rgb, sw)]  # explicit transfers are the fast path
     rgb_d, target, sw_d = _values(dirs.wi_device, dirs.wo_device, *arrays, loss=loss,
                                   chunks=chunks, dtype=dtype)
-    data = FitData(dirs.wi_device, dirs.wo_device, rgb_d, target, sw_d)
+    data = FitData(dirs.wi_device, dirs.wo_device, rgb_d, target, sw_d,
+                   float(getattr(samples, "value_epsilon", 0.0)))
     host = (wi[:k], wo[:k], rgb[:k], good[:k])
     return Selection(data, rows, len(samples.wi), dirs.n_usable, int(np.count_nonzero(good)),
                      chunks, host, screened)

@@ -383,7 +383,8 @@ class RGLMaterial:
         node of the ``n x n`` reflectance table, mapped through the slice's VNDF warp to ``ωm``
         and reflected to ``ωo`` (:meth:`pattern`); the value is the node's tabulated ``f_r``,
         which :meth:`eval` reproduces there. Pairs with ``ωo`` below the horizon or marked
-        invalid by the file stay in the arrays with ``valid == False`` (static shapes).
+        invalid by the file stay in the arrays with ``valid == False`` (static shapes). The
+        values come from float32 tables: ``value_epsilon`` is float32's epsilon.
 
         Weights (``SampleSet.weight``, ``weights=True``): the share of the Rusinkiewicz angle
         domain ``(θh, φh, θd, φd)`` each pair stands for, relative to the average pair — the
@@ -423,7 +424,7 @@ class RGLMaterial:
         wi, wo, wm, u_m, value, valid, pts = self.pattern()
         weight = self.pair_weights(wi, wm, pts, valid, count=count) if weights else None
         return SampleSet(wi=wi, wo=wo, rgb=value, valid=valid, name=self.name, path=self.path,
-                         weight=weight)
+                         weight=weight, value_epsilon=float(np.finfo(self.rgb_table.dtype).eps))
 
 
 def _nearest(nodes, x):
