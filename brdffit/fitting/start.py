@@ -61,6 +61,24 @@ class Features:
             if getattr(self, name) is None:
                 object.__setattr__(self, name, float(self.alpha))
 
+    @property
+    def isotropic(self) -> bool:
+        return self.alpha_x == self.alpha_y
+
+    def axis_widths(self) -> tuple[float, float]:
+        r"""The lobe's widths along the data's own ``x`` and ``y`` axes, for a model whose
+        tangent is the data's ``x`` (no ``frame_angle``): the square roots of the diagonal of
+        the slope covariance :math:`R\,\mathrm{diag}(\alpha_x^2, \alpha_y^2)\,R^\top`
+        (``R`` the turn by ``frame_angle``). An anisotropic GGX lobe's slope density is
+        constant on the ellipses :math:`s^\top A^{-1} s = c` of that matrix ``A``; these widths
+        are the ellipses' extent along each axis, so an axis-aligned lobe of these widths
+        spreads as far along ``x`` and ``y`` as the turned one. Equal to ``(α_x, α_y)`` at
+        ``frame_angle = 0``, and to ``(α, α)`` for an isotropic lobe."""
+        c, s = np.cos(self.frame_angle), np.sin(self.frame_angle)
+        ax2, ay2 = self.alpha_x ** 2, self.alpha_y ** 2
+        return (float(np.sqrt(c * c * ax2 + s * s * ay2)),
+                float(np.sqrt(s * s * ax2 + c * c * ay2)))
+
 
 def _angles(wi, wo):
     h = wi + wo

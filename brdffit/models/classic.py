@@ -367,15 +367,19 @@ LAFORTUNE_MIN_EXPONENT = 1.0
 
 
 def _lafortune_params(lobes):
+    """The parameters of a ``lobes``-lobe Lafortune. By default lobe ``k`` has the exponent
+    ``100 · HAZE^(k−1)`` (100, 12.5, 1.56: each eight times broader than the one before, the
+    haze of :func:`start_lafortune`): identical default lobes would be one lobe whose ``k_s``
+    the data cannot split among them (a file written at the defaults would fit ambiguously)."""
     params = [DIFFUSE]
-    for k in ([""] if lobes == 1 else [f"_{k}" for k in range(1, lobes + 1)]):
+    for i, k in enumerate([""] if lobes == 1 else [f"_{k}" for k in range(1, lobes + 1)]):
         which = "" if not k else f" of lobe {k[1:]}"
         params += [
             Param("specular" + k, (3,), 0.0, 4.0, 0.1, f"specular scale k_s (RGB){which}",
                   per_channel=True),
             Param("psi" + k, (), 0.0, PSI_MAX, MIRROR,
                   f"direction ψ of (C_xy, C_z) = (cos ψ, sin ψ){which}: 3π/4 the mirror lobe"),
-            Param("exponent" + k, (), LAFORTUNE_MIN_EXPONENT, 1e6, 100.0,
+            Param("exponent" + k, (), LAFORTUNE_MIN_EXPONENT, 1e6, 100.0 * HAZE ** i,
                   f"exponent n{which} (bbm's sharpness)", log=True),
         ]
     return tuple(params)

@@ -10,15 +10,18 @@ inside the parameters' bounds.
   write ``α = roughness²``, so ``roughness = √α``; data whose mean ``F0`` exceeds
   :data:`METAL_F0` read as a metal (colour from ``F0``, ``metallic`` 0.9), others as a
   dielectric (colour from ``ρ_d``, ``metallic`` 0.1); Disney's and Mitsuba's ``specular`` is
-  the dielectric ``F0 = 0.08 specular``.
+  the dielectric ``F0 = 0.08 specular``. On anisotropic data Disney's and Mitsuba's
+  ``roughness`` and ``anisotropic`` take the lobe's widths along the data's axes
+  (:func:`principled_anisotropy`).
 * **glTF** (``gltf-pbr``, ``gltf-pbr-clearcoat``): a dielectric starts at ``metallic`` 0 with
   its diffuse colour and the ``ior`` of its ``F0`` (``KHR_materials_ior``:
   ``ior = (1 + √F0)/(1 − √F0)``, so a plastic's 5 % gives 1.58), ``specular`` 1; a metal at
   ``metallic`` 1 with the colour of its ``F0``. The dielectric start matters: the fit does not
   leave the basin it starts in, and the core model's metallic reading of a shiny plastic (a
   black metal) is a worse optimum once the dielectric can reach its ``F0``.
-* **Mitsuba's rough conductor**: ``α`` as measured (both ``alpha_u`` and ``alpha_v`` when
-  anisotropic); the tint form's ``specular_reflectance`` is ``F0`` (its Fresnel is 1), the
+* **Mitsuba's rough conductor**: ``α`` as measured; when anisotropic, ``alpha_u`` and
+  ``alpha_v`` are the lobe's widths along the data's ``x`` and ``y`` (its tangent is the
+  data's ``x``: :meth:`~brdffit.fitting.start.Features.axis_widths`); the tint form's ``specular_reflectance`` is ``F0`` (its Fresnel is 1), the
   complex-IOR form takes ``η = 1`` and the ``k`` whose normal-incidence reflectance
   ``((η − 1)² + k²)/((η + 1)² + k²) = k²/(4 + k²)`` is ``F0``: ``k = 2 √(F0/(1 − F0))``.
 
@@ -75,14 +78,34 @@ def specular_level(features) -> float:
 
 def principled(features) -> dict:
     """The start of ``disney`` and ``mitsuba-principled``: :func:`metallic_roughness` and
-    :func:`specular_level`; the lobes the features say nothing about keep their defaults."""
-    return {**metallic_roughness(features), "specular": specular_level(features)}
+    :func:`specular_level`, and on anisotropic data :func:`principled_anisotropy`; the lobes
+    the features say nothing about keep their defaults."""
+    out = {**metallic_roughness(features), "specular": specular_level(features)}
+    if not features.isotropic:
+        out.update(principled_anisotropy(features))
+    return out
+
+
+def principled_anisotropy(features) -> dict:
+    r"""``roughness`` and ``anisotropic`` of the Disney/Mitsuba principled lobe whose widths
+    along the data's axes (:meth:`~brdffit.fitting.start.Features.axis_widths`, ``w_x``,
+    ``w_y``) the data show: the lobe's tangent is the data's ``x`` (Burley 2012, addenda:
+    ``α_x = r²/aspect``, ``α_y = r² aspect``, ``aspect = √(1 − 0.9 anisotropic)``), so
+    ``r² = √(w_x w_y)`` and ``anisotropic = (1 − w_y/w_x)/0.9``, clipped to ``[0, 1]``: a lobe
+    wider along ``y`` than ``x`` is one these models cannot turn to, and starts isotropic."""
+    wx, wy = features.axis_widths()
+    return {"roughness": float(np.clip((wx * wy) ** 0.25, 0.05, 0.95)),
+            "anisotropic": float(np.clip((1.0 - wy / wx) / 0.9, 0.0, 1.0))}
 
 
 def rough_conductor(features, anisotropic: bool = False, fresnel: str = "ior") -> dict:
     """The start of Mitsuba's ``roughconductor`` variants (module docstring)."""
     alpha = float(features.alpha)
-    out = {"alpha_u": alpha, "alpha_v": alpha} if anisotropic else {"alpha": alpha}
+    if anisotropic:  # the tangent is the data's x: the lobe's widths along the data's axes
+        out = (dict(zip(("alpha_u", "alpha_v"), features.axis_widths()))
+               if not features.isotropic else {"alpha_u": alpha, "alpha_v": alpha})
+    else:
+        out = {"alpha": alpha}
     f0 = np.clip(np.asarray(features.f0, float), 0.01, 0.95)
     if fresnel == "tint":
         out["specular_reflectance"] = f0
