@@ -485,6 +485,38 @@ def test_select_masks_cutoff_and_subsample():
     assert not np.array_equal(select(s, get_loss("log"), subsample=500, seed=4).index, again.index)
 
 
+@pytest.mark.parametrize("loss", ["log", "linear", "cosine"])
+def test_cost_floor_adds_the_cost_of_the_values_storage_rounding(loss):
+    """``F_d = ½ Σ (w (g(ρ(1 + ε_d)) − g(ρ)))²``, a NumPy transcription against the floor with
+    and without ``value_epsilon``; masked cells add nothing, and float64 storage (ε_d = 0)
+    leaves the floor as it was."""
+    from brdffit.fitting.solve import cost_floor
+
+    s = ggx_samples(500)
+    s.valid[:7] = False
+    eps = float(np.finfo(np.float32).eps)
+    with jax.enable_x64(True):
+        problem = _problem("ggx", (0, 3, 6), {}, loss=loss)
+        plain = select(s, get_loss(loss))
+        stored = select(dataclasses.replace(s, value_epsilon=eps), get_loss(loss))
+        floors = [float(cost_floor(problem, sel.data)) for sel in (plain, stored)]
+    assert plain.data.value_epsilon == 0.0 and stored.data.value_epsilon == eps
+    g, w = NUMPY_LOSSES[loss], np.asarray(stored.data.sqrt_weight)
+    rgb, ci, co = (np.asarray(a) for a in (stored.data.rgb, stored.data.wi[:, 2:3],
+                                           stored.data.wo[:, 2:3]))
+    r = w * (g(rgb * (1 + eps), 0.0, ci, co) - g(rgb, 0.0, ci, co)) if loss != "log" else (
+        w * (np.log1p(rgb * (1 + eps) * ci) - np.log1p(rgb * ci)))
+    assert floors[1] == pytest.approx(floors[0] + 0.5 * np.sum(r[w > 0] ** 2), rel=1e-6)
+    assert 0.5 * np.sum(r[w > 0] ** 2) > floors[0]  # float32 storage outweighs the compute
+
+
+def test_sample_set_value_epsilon_is_checked():
+    s = ggx_samples(10)
+    for bad in (-1e-7, 1.0, float("nan")):
+        with pytest.raises(ValueError, match="value_epsilon"):
+            dataclasses.replace(s, value_epsilon=bad)
+
+
 def test_select_pads_to_whole_blocks_with_zero_weight():
     n = CHUNK_CELLS + 10
     wi = np.tile([[0.0, 0.6, 0.8]], (n, 1))
@@ -885,12 +917,36 @@ def test_rounds_that_leave_the_fit_where_it_was_end_the_solve_converged(monkeypa
     from brdffit.fitting.solve import Solved
 
     marked = Solved(z=z0, result=optx.RESULTS.nonlinear_max_steps_reached, steps=np.asarray(70),
-                    cost=np.asarray(F), omega=np.asarray(3e-7), jtj=np.eye(2), meat=np.eye(2),
+                    cost=np.asarray(F), omega=np.asarray(3e-7),
+                    gn=(np.eye(2), np.zeros(2), np.asarray(F)), jtj=np.eye(2), meat=np.eye(2),
                     dxdz=np.ones(2), metrics={}, m=np.asarray(100), step_size=np.asarray(1.0),
                     still=True)
     v = outcome.verdict(marked, 1e-9)
     assert v.success and v.status == "still" and "stillness test" in v.message and "3e-07" in v.message
     assert marked.converged(1e-9) and not eqx.tree_at(lambda s: s.still, marked, False).converged(1e-9)
+
+
+def test_the_optimality_test_leaves_out_the_scalars_the_data_do_not_identify():
+    """At an exact fit (cost 1e-12) a direction the cost barely depends on (``JᵀJ`` 1e-20,
+    gradient 1e-16) promises a decrease of up to ``g²/(2 JᵀJ)`` = 5e-13, half the cost (``ω``
+    4e-5 with the ridge that bounds the step): over all the scalars the fit is stalled; over the identified one it has converged, and the verdict
+    says so. With nothing lost, or everything, the test over all of them decides."""
+    from brdffit.fitting import outcome
+    from brdffit.fitting.solve import Solved
+
+    jtj, g, cost = np.diag([1.0, 1e-20]), np.array([1e-14, 1e-16]), np.asarray(1e-12)
+    z = np.array([0.3, 0.4])
+    omega = float(optimality(jnp.asarray(jtj), jnp.asarray(g), jnp.asarray(cost),
+                             jnp.asarray(z))[0])
+    best = Solved(z=z, result=optx.RESULTS.successful, steps=np.asarray(9), cost=cost,
+                  omega=np.asarray(omega), gn=(jtj, g, cost), jtj=jtj, meat=jtj,
+                  dxdz=np.ones(2), metrics={}, m=np.asarray(100), step_size=np.asarray(1.0))
+    assert omega > 1e-5 and best.omega_over([True, False]) < 1e-9
+    assert outcome.verdict(best, 1e-9).status == "stalled"
+    for lost in ([False, False], [True, True]):
+        assert outcome.verdict(best, 1e-9, np.array(lost)).status == "stalled"
+    v = outcome.verdict(best, 1e-9, np.array([False, True]))
+    assert v.success and v.status == "successful" and "identify" in v.message
 
 
 def test_the_scan_shifts_the_lobe_widths_only():
