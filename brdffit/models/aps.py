@@ -3,6 +3,8 @@
 The registered models (``aps-gaussian`` eq. 34, ``aps-velvet`` eq. 35, ``aps-satin`` §6.3,
 ``aps-vgroove`` §6.2) each take RGB ``f0`` and ``diffuse`` (ρ_d) plus the distribution's shape
 parameters; the BRDF itself is :func:`brdffit.terms.aps.brdf.aps_brdf`, in its three stages.
+The anisotropic ones (Gaussian, satin, V-grooves) also take their tangent's azimuth
+``frame_angle`` (:mod:`brdffit.models.frame`), which their starts read off the data.
 
 The registered models declare the stages (``Model.stages``) so that
 :func:`brdffit.models.evaluate.evaluate_model` (fitted tables, figures) builds the tables once
@@ -23,7 +25,7 @@ from ..terms.aps.specular import CORRELATED, UNCORRELATED
 from ..terms.aps.tables import Resolution
 from .frame import FRAME_ANGLE, rotated, rotated_stages
 from .registry import Model, Param, register
-from .starts import aps_gaussian
+from .starts import aps_gaussian, aps_satin, aps_vgroove
 
 
 F0 = Param(
@@ -35,6 +37,8 @@ DIFFUSE = Param(
     per_channel=True,
 )
 SIGMA_BOUNDS = (0.08, 1.0)
+#: The V-grooves' largest facet tilt (rad).
+VGROOVE_TILT_MAX = 1.2
 
 #: Table sizes of the registered models (call :func:`~brdffit.terms.aps.aps_brdf` with others).
 #: Isotropic tables are 1-D (33 elevations) and cheap; anisotropic ones are 2-D (17 elevations ×
@@ -129,8 +133,10 @@ APS_SATIN = register(Model(
         Param("sigma_flats", (), *SIGMA_BOUNDS, 0.1, "σ_x of the flat fiber parts (σ_y = ∞)", log=True),
         Param("sigma_ends", (), *SIGMA_BOUNDS, 0.3, "σ_x of the bent fiber ends (σ_y = ∞)", log=True),
         Param("w_flats", (), 0.0, 1.0, 0.7, "area fraction of the flat parts"),
+        FRAME_ANGLE,
     ),
-    **_staged(_satin, UNCORRELATED, ANISO_RESOLUTION), isotropic=False, reference="APS 2000 §6.3, eqs. 26, 30, 34",
+    **_in_frame(_staged(_satin, UNCORRELATED, ANISO_RESOLUTION)), isotropic=False,
+    start=lambda features: aps_satin(features, SIGMA_BOUNDS), reference="APS 2000 §6.3, eqs. 26, 30, 34",
 ))
 
 APS_VGROOVE = register(Model(
@@ -138,8 +144,11 @@ APS_VGROOVE = register(Model(
     description="APS 2000 V-grooves along y: two narrow Gaussians about tilted facet normals (§6.2)",
     params=(
         DIFFUSE, F0,
-        Param("tilt", (), 0.0, 1.2, float(np.radians(20.0)), "facet tilt from n (rad); grooves along y"),
+        Param("tilt", (), 0.0, VGROOVE_TILT_MAX, float(np.radians(20.0)), "facet tilt from n (rad); grooves along y"),
         Param("sigma", (), *SIGMA_BOUNDS, 0.1, "width of each facet Gaussian", log=True),
+        FRAME_ANGLE,
     ),
-    **_staged(_vgroove, UNCORRELATED, ANISO_RESOLUTION), isotropic=False, reference="APS 2000 §6.2, eqs. 26, 30",
+    **_in_frame(_staged(_vgroove, UNCORRELATED, ANISO_RESOLUTION)), isotropic=False,
+    start=lambda features: aps_vgroove(features, SIGMA_BOUNDS, VGROOVE_TILT_MAX),
+    reference="APS 2000 §6.2, eqs. 26, 30",
 ))

@@ -20,7 +20,10 @@ channel for the rotation, and the solver refines the angle together with the wid
 A lobe with ``α_x = α_y`` does not depend on ``φ_t``; a symmetric lobe (GGX, the APS Gaussian)
 is the same at ``φ_t`` and ``φ_t + π``, and at ``φ_t + π/2`` with its widths swapped, so
 :data:`FRAME_ANGLE` spans ``[-π/2, π/2]`` and the start picks the labelling with
-``|φ_t| ≤ π/4``, a quarter turn from either bound.
+``|φ_t| ≤ π/4``, a quarter turn from either bound. The APS satin and V-grooves are the same at
+``φ_t + π`` but not at ``φ_t + π/2`` (their widths do not swap): their starts put the tangent
+on the lobe's narrow or wide axis, anywhere in the range
+(:func:`brdffit.models.starts.oriented`).
 """
 
 from __future__ import annotations

@@ -31,6 +31,11 @@ inside the parameters' bounds.
   falls to half at ``s² = σ² ln 2``, GGX at ``s² = α²(√2 − 1)``: equal half widths give
   ``σ = α √((√2 − 1)/ln 2)`` (:data:`GAUSSIAN_PER_GGX`).
 
+* **the APS satin and V-grooves** (``aps-satin``, ``aps-vgroove``): their ``frame_angle``
+  from the lobe's axes, the satin's tangent on the narrow axis (its fibres' slopes spread
+  along ``x`` only), the grooves' on the wide one (the grooves split the lobe along ``x``);
+  on anisotropic data their widths from the lobe's (:func:`aps_satin`, :func:`aps_vgroove`).
+
 ``two-lobe-ggx`` starts from a fitted ``ggx`` instead (``Model.refines``,
 :func:`two_lobes_from_one`): with the blend at 0 (or 1) it is the one-lobe fit, so the two-lobe
 fit cannot end above it.
@@ -125,6 +130,52 @@ def aps_gaussian(features, bounds=(0.0, np.inf)) -> dict:
             "sigma_x": float(np.clip(GAUSSIAN_PER_GGX * features.alpha_x, *bounds)),
             "sigma_y": float(np.clip(GAUSSIAN_PER_GGX * features.alpha_y, *bounds)),
             "frame_angle": features.frame_angle}
+
+
+def oriented(features, wide_x: bool) -> float:
+    """The ``frame_angle`` that puts a model's tangent ``x`` on the lobe's wide axis
+    (``wide_x``) or its narrow one: the features' angle (the axis of ``α_x``, ``|φ| ≤ π/4``), or a
+    quarter turn from it, wrapped into ``[−π/2, π/2]``; 0 for an isotropic lobe."""
+    if features.isotropic:
+        return 0.0
+    angle = float(features.frame_angle)
+    if (features.alpha_x > features.alpha_y) != wide_x:
+        angle += np.pi / 2 if angle <= 0 else -np.pi / 2
+    return angle
+
+
+def _narrow_wide(features) -> tuple[float, float]:
+    return min(features.alpha_x, features.alpha_y), max(features.alpha_x, features.alpha_y)
+
+
+def aps_satin(features, bounds=(0.0, np.inf)) -> dict:
+    """The start of ``aps-satin``: its fibres' slopes spread along the tangent ``x`` only
+    (cylindrical Gaussians, ``σ_y = ∞``), so ``x`` goes on the lobe's narrow axis
+    (:func:`oriented`), with ``sigma_flats`` the narrow width as :func:`aps_gaussian` maps it and
+    ``sigma_ends`` three times that (the ratio of the paper's 0.1 and 0.3). An isotropic lobe
+    keeps the defaults' widths."""
+    out = {"diffuse": features.diffuse, "f0": features.f0,
+           "frame_angle": oriented(features, wide_x=False)}
+    if not features.isotropic:
+        narrow = GAUSSIAN_PER_GGX * _narrow_wide(features)[0]
+        out.update(sigma_flats=float(np.clip(narrow, *bounds)),
+                   sigma_ends=float(np.clip(3.0 * narrow, *bounds)))
+    return out
+
+
+def aps_vgroove(features, bounds=(0.0, np.inf), tilt_max: float = np.inf) -> dict:
+    """The start of ``aps-vgroove``: grooves along ``y`` split the lobe along ``x``, so ``x``
+    goes on the lobe's wide axis (:func:`oriented`); each facet's ``sigma`` is the narrow width
+    (mapped as :func:`aps_gaussian` maps it), and the ``tilt`` the slope that widens the other
+    axis beyond it, ``atan √(w² − n²)``. An isotropic lobe keeps the defaults' shape."""
+    out = {"diffuse": features.diffuse, "f0": features.f0,
+           "frame_angle": oriented(features, wide_x=True)}
+    if not features.isotropic:
+        narrow, wide = _narrow_wide(features)
+        out.update(sigma=float(np.clip(GAUSSIAN_PER_GGX * narrow, *bounds)),
+                   tilt=float(np.clip(np.arctan(np.sqrt(wide * wide - narrow * narrow)),
+                                      0.0, tilt_max)))
+    return out
 
 
 #: The second lobe of :func:`two_lobes_from_one` starts this factor wider (or narrower) than the
