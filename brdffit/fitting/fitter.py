@@ -25,7 +25,7 @@ from .problem import Problem
 from .result import FitResult
 from .bounded import COST_NOISE, make_solver
 from .stages import best_of, starts
-from .start import start_point
+from .start import measure, start_point
 
 
 def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwargs) -> FitResult:
@@ -125,12 +125,44 @@ def prepare(table, model, settings: Settings) -> Prepared:
     return prepare_on(sel, model, settings, samples.name, scalars)
 
 
+#: The parameter that turns an anisotropic model's tangent (:mod:`brdffit.models.frame`).
+FRAME = "frame_angle"
+
+
 def prepare_on(sel, model, settings: Settings, name: str, scalars=None) -> Prepared:
     """:func:`prepare` on cells already selected (``scalars``: :func:`.parameters.free_scalars`
-    of ``model`` and ``settings``, if already made)."""
+    of ``model`` and ``settings``, if already made).
+
+    Where the cells do not determine the lobe's axes (:attr:`.start.Features.axes`: a MERL
+    table, whose half vectors all lie in one plane) and the user neither fixed nor started
+    ``frame_angle``, it is held at 0, the tangent on the data's ``x`` (:func:`held_frame`):
+    fitted there it would only move the one azimuth such a table samples."""
+    features = measure(*_host_cells(sel))
+    held = held_frame(model, settings, features)
+    if held:
+        settings = dataclasses.replace(settings, fixed={**(settings.fixed or {}), **held})
+        scalars = None
     scalars, x0 = scalars or free_scalars(model, settings.fixed, settings.bounds)
     check_enough(sel, len(scalars.free), name)
-    x_start = start_point(model, sel.host, scalars, x0, settings.init)
+    x_start = start_point(model, features, scalars, x0, settings.init)
     problem = Problem.build(scalars, settings.loss, x_start, settings.precision, sel.chunks)
+    notes = (f"{FRAME} held at 0: the data do not determine the lobe's axes (half vectors in "
+             f"one plane, as in an isotropic table)",) if held else ()
     return Prepared(model, settings, scalars, sel, problem, x_start, scalars.to_box(x_start),
-                    name)
+                    name, notes)
+
+
+def _host_cells(sel):
+    wi, wo, rgb, good = sel.host
+    return rgb, wi, wo, good
+
+
+def held_frame(model, settings: Settings, features) -> dict:
+    """``{"frame_angle": 0.0}`` where ``model`` turns its tangent, the data do not determine
+    the lobe's axes and the user gave the angle neither as a fixed value nor as a start;
+    otherwise empty."""
+    if FRAME not in model.names or features.axes:
+        return {}
+    given = set(settings.fixed or {})
+    init = getattr(settings.init, "params", settings.init) or {}
+    return {} if FRAME in given or FRAME in init else {FRAME: 0.0}

@@ -66,6 +66,7 @@ class Prepared:
     x_start: np.ndarray  # the starting point, flat, physical units
     z0: np.ndarray  # its box coordinates (free scalars)
     name: str  # the table's
+    notes: tuple[str, ...] = ()  # what the preparation decided for the user, for the message
 
 
 @dataclasses.dataclass(frozen=True)
@@ -262,7 +263,7 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
     if v.status != "degenerate":  # a cost that depends on nothing says it first
         v = data_verdict(prep.selection, len(free)) or data_determined(v, bound, lost)
     names = model.flat_names()
-    message = v.message
+    message = "; ".join(filter(None, [v.message, *prep.notes]))
     if best.finite and lost.any() and v.success:
         message = "; ".join(filter(None, [message, (
             "not identified by the data (no standard error): "

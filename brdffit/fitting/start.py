@@ -55,6 +55,10 @@ class Features:
     alpha_x: float | None = None  # the widths along the lobe's principal axes (None: alpha)
     alpha_y: float | None = None
     frame_angle: float = 0.0  # azimuth of the alpha_x axis from the data's x axis, |.| <= π/4
+    #: whether the data determined the lobe's axes (:func:`anisotropy`): not on a table whose
+    #: half vectors lie in one plane (a MERL table, isotropic by construction: ``φh = 0``), nor
+    #: on too few cells of the lobe
+    axes: bool = False
 
     def __post_init__(self):
         for name in ("alpha_x", "alpha_y"):
@@ -63,7 +67,8 @@ class Features:
 
     @property
     def isotropic(self) -> bool:
-        return self.alpha_x == self.alpha_y
+        """The lobe shows no anisotropy: its axes undetermined, or its widths equal."""
+        return not self.axes or self.alpha_x == self.alpha_y
 
     def axis_widths(self) -> tuple[float, float]:
         r"""The lobe's widths along the data's own ``x`` and ``y`` axes, for a model whose
@@ -166,7 +171,7 @@ def measure(rgb, wi, wo, good) -> Features:
     aniso = anisotropy(excess.mean(axis=1)[near], wi[near], wo[near], float(height.mean()))
     if aniso is None:
         return Features(diffuse, height, alpha, f0)
-    return Features(diffuse, height, alpha, f0, *aniso)
+    return Features(diffuse, height, alpha, f0, *aniso, axes=True)
 
 
 #: The widths :func:`anisotropy` reports are clipped to this range (as ``alpha``).
@@ -247,13 +252,12 @@ def guess(model, feat: Features) -> dict:
     return out
 
 
-def start_point(model, host, scalars, x0, init=None) -> np.ndarray:
+def start_point(model, features: Features, scalars, x0, init=None) -> np.ndarray:
     """The flat starting vector: ``x0`` (defaults and fixed values) with the free scalars at the
-    data-driven :func:`guess` on the selected cells ``host`` (``(wi, wo, rgb, good)``), then the
-    user's ``init`` (name → value, or a previous ``FitResult``) on top; fixed scalars keep their
-    values."""
-    wi, wo, rgb, good = host
-    start = model.flatten(guess(model, measure(rgb, wi, wo, good)))
+    data-driven :func:`guess` from ``features`` (:func:`measure` of the selected cells), then
+    the user's ``init`` (name → value, or a previous ``FitResult``) on top; fixed scalars keep
+    their values."""
+    start = model.flatten(guess(model, features))
     free = list(scalars.free)
     x = x0.copy()
     x[free] = start[free]
