@@ -225,20 +225,26 @@ def test_models_without_a_frame_start_from_the_widths_along_the_files_axes(turn_
     assert disney["roughness"] ** 2 == pytest.approx(np.sqrt(wx * wy), rel=0.2)
 
 
+def _pairs_in_a_plane(n: int):
+    """``(wi, wo)`` above the horizon at ``n`` random Rusinkiewicz angles with ``φh = 0``, as a
+    MERL table lays them out: every half vector in the x–z plane."""
+    from data_formats.rusinkiewicz import dirs_from_half_diff
+
+    rng = np.random.default_rng(3)
+    th, td, pd = (rng.uniform(0, 1.4, n) ** 2, rng.uniform(0, 1.5, n),
+                  rng.uniform(0, np.pi, n))
+    wi, wo = (np.asarray(w, float) for w in dirs_from_half_diff(th, td, pd))
+    keep = (wi[:, 2] > 0.05) & (wo[:, 2] > 0.05)
+    return wi[keep], wo[keep]
+
+
 def test_half_vectors_in_one_plane_read_as_isotropic():
     """A MERL table's half vectors all lie in the x–z plane: the anisotropy is not determined,
     and the start keeps one width and the file's frame."""
-    from data_formats.rusinkiewicz import dirs_from_half_diff
-
     from brdffit.fitting.start import anisotropy, measure
     from brdffit.models.evaluate import evaluate_model
 
-    rng = np.random.default_rng(3)
-    th, td, pd = (rng.uniform(0, 1.4, 4000) ** 2, rng.uniform(0, 1.5, 4000),
-                  rng.uniform(0, np.pi, 4000))
-    wi, wo = (np.asarray(w, float) for w in dirs_from_half_diff(th, td, pd))
-    keep = (wi[:, 2] > 0.05) & (wo[:, 2] > 0.05)
-    wi, wo = wi[keep], wo[keep]
+    wi, wo = _pairs_in_a_plane(4000)
     rgb = evaluate_model("ggx", ISO, wi, wo)
     excess = (rgb - 0.1 / np.pi).mean(axis=1)
     assert anisotropy(excess, wi, wo, float(excess.max())) is None
@@ -252,16 +258,10 @@ def test_on_half_vectors_in_one_plane_the_frame_angle_is_held_at_zero():
     ``frame_angle`` is held at 0 (the tangent on the data's x), listed as fixed and said in
     the message; a start or a fixed value the user gives for it is kept."""
     from data_formats import SampleSet
-    from data_formats.rusinkiewicz import dirs_from_half_diff
 
     from brdffit.models.evaluate import evaluate_model
 
-    rng = np.random.default_rng(3)
-    th, td, pd = (rng.uniform(0, 1.4, 3000) ** 2, rng.uniform(0, 1.5, 3000),
-                  rng.uniform(0, np.pi, 3000))
-    wi, wo = (np.asarray(w, float) for w in dirs_from_half_diff(th, td, pd))
-    keep = (wi[:, 2] > 0.05) & (wo[:, 2] > 0.05)
-    wi, wo = wi[keep], wo[keep]
+    wi, wo = _pairs_in_a_plane(3000)
     truth = {**ANISO, "frame_angle": 0.0}
     table = SampleSet(wi, wo, evaluate_model("ggx-aniso", truth, wi, wo),
                       np.ones(len(wi), bool), name="plane")
