@@ -263,13 +263,14 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
     if v.status != "degenerate":  # a cost that depends on nothing says it first
         v = data_verdict(prep.selection, len(free)) or data_determined(v, bound, lost)
     names = model.flat_names()
-    message = "; ".join(filter(None, [v.message, *prep.notes]))
+    message = v.message
     if best.finite and lost.any() and v.success:
         message = "; ".join(filter(None, [message, (
             "not identified by the data (no standard error): "
             + ", ".join(names[free[i]] for i in np.flatnonzero(lost)))]))
     elif best.finite and not regular and not message:
         message = "JᵀJ is singular at the optimum: some parameters are not identified by the data"
+    message = "; ".join(filter(None, [message, *prep.notes]))
     cov = np.zeros((len(x), len(x)))
     cov[np.ix_(free, free)] = cov_free
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
