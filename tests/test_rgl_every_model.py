@@ -19,7 +19,8 @@ MULTISTART = {"mitsuba-roughconductor": 8, "mitsuba-roughconductor-beckmann": 8}
 
 
 @pytest.mark.parametrize("name", brdffit.available_models())
-def test_every_model_fits_a_file_written_from_its_own_defaults(name, tmp_path):
+def test_every_model_fits_a_file_written_from_its_own_defaults(name, tmp_path,
+                                                               few_programs_held):
     """Each registered model, written at its default parameters as a small ``.bsdf`` (8 x 8
     nodes, 4 θi slices; 5 φi slices for an anisotropic model), read back and fitted: the fit
     converges and reproduces the file's values. These are exact fits to float32 tables,
