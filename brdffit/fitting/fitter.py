@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from ..models.frame import FRAME_ANGLE
 from ..models.registry import get_model
 from .data import check_enough, select
 from .events import Events
@@ -126,7 +127,7 @@ def prepare(table, model, settings: Settings) -> Prepared:
 
 
 #: The parameter that turns an anisotropic model's tangent (:mod:`brdffit.models.frame`).
-FRAME = "frame_angle"
+FRAME = FRAME_ANGLE.name
 
 
 def prepare_on(sel, model, settings: Settings, name: str, scalars=None) -> Prepared:
@@ -137,7 +138,8 @@ def prepare_on(sel, model, settings: Settings, name: str, scalars=None) -> Prepa
     table, whose half vectors all lie in one plane) and the user neither fixed nor started
     ``frame_angle``, it is held at 0, the tangent on the data's ``x`` (:func:`held_frame`):
     fitted there it would only move the one azimuth such a table samples."""
-    features = measure(*_host_cells(sel))
+    wi, wo, rgb, good = sel.host
+    features = measure(rgb, wi, wo, good)
     held = held_frame(model, settings, features)
     if held:
         settings = dataclasses.replace(settings, fixed={**(settings.fixed or {}), **held})
@@ -150,11 +152,6 @@ def prepare_on(sel, model, settings: Settings, name: str, scalars=None) -> Prepa
              f"one plane, as in an isotropic table)",) if held else ()
     return Prepared(model, settings, scalars, sel, problem, x_start, scalars.to_box(x_start),
                     name, notes)
-
-
-def _host_cells(sel):
-    wi, wo, rgb, good = sel.host
-    return rgb, wi, wo, good
 
 
 def held_frame(model, settings: Settings, features) -> dict:
