@@ -82,6 +82,7 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
         zs, first = first + zs[1:], []
     best, costs = best_of(prep.problem, solver, prep.selection.data, zs, settings.max_steps,
                           scan, events, first)
+    prep, best, costs = reread(prep, best, costs, solver, events)
     t2 = time.perf_counter()
     return assemble(prep, best, costs, (t0, t1, t2), events, throw)
 
@@ -117,6 +118,33 @@ def refined(prep: Prepared, solver, events: Events) -> tuple[Prepared, list[np.n
     return prep, [prep.scalars.to_box(x) for x in xs]
 
 
+def reread(prep: Prepared, best, costs, solver, events: Events):
+    """``(prep, best, costs)`` of the material's reading (``Model.reading``, held at its first
+    value by :func:`prepare_on`): where the first fit's parameters say the material is the other
+    reading, the fit is made again on the same cells with the parameter held at the other
+    value, and that fit is the result; the message says which reading and why. Unchanged
+    where the model has no reading or the user fixed or started its parameter."""
+    reading = prep.model.reading
+    if reading is None or reading.param not in prep.held:
+        return prep, best, costs
+    x, _ = end_point(prep, best)
+    why = reading.decide(prep.model.unflatten(x), prep.features)
+    name = reading.param
+    if not why:
+        note = (f"{name} held at {reading.first:g}, {reading.names[0]} (start {name} to fit a "
+                f"blend)")
+        return dataclasses.replace(prep, notes=prep.notes + (note,)), best, costs
+    holds = {k: v for k, v in reading.other_holds.items() if k not in _given(prep.settings)}
+    settings = dataclasses.replace(prep.settings, fixed={**(prep.settings.fixed or {}),
+                                                         name: reading.other, **holds})
+    other = prepare_on(prep.selection, prep.model, settings, prep.name)
+    zs = starts(other.z0, settings.multistart, settings.seed)
+    best, costs = best_of(other.problem, solver, other.selection.data, zs, settings.max_steps,
+                          settings.scan, events)
+    note = f"{name} held at {reading.other:g}, {reading.names[1]}: {why}"
+    return dataclasses.replace(other, notes=other.notes + (note,)), best, costs
+
+
 def prepare(table, model, settings: Settings) -> Prepared:
     """The cells, the free scalars, the starting point and the problem of a fit."""
     samples = table.to_samples()
@@ -140,7 +168,7 @@ def prepare_on(sel, model, settings: Settings, name: str, scalars=None) -> Prepa
     fitted there it would only move the one azimuth such a table samples."""
     wi, wo, rgb, good = sel.host
     features = measure(rgb, wi, wo, good)
-    held = held_frame(model, settings, features)
+    held = {**held_frame(model, settings, features), **held_reading(model, settings)}
     if held:
         settings = dataclasses.replace(settings, fixed={**(settings.fixed or {}), **held})
         scalars = None
@@ -149,9 +177,24 @@ def prepare_on(sel, model, settings: Settings, name: str, scalars=None) -> Prepa
     x_start = start_point(model, features, scalars, x0, settings.init)
     problem = Problem.build(scalars, settings.loss, x_start, settings.precision, sel.chunks)
     notes = (f"{FRAME} held at 0: the data do not determine the lobe's axes (half vectors in "
-             f"one plane, as in an isotropic table)",) if held else ()
+             f"one plane, as in an isotropic table)",) if FRAME in held else ()
     return Prepared(model, settings, scalars, sel, problem, x_start, scalars.to_box(x_start),
-                    name, notes)
+                    name, notes, held, features)
+
+
+def _given(settings: Settings) -> set[str]:
+    """The parameters the user fixed or started."""
+    init = getattr(settings.init, "params", settings.init) or {}
+    return set(settings.fixed or {}) | set(init)
+
+
+def held_reading(model, settings: Settings) -> dict:
+    """``{param: first}`` of ``model``'s :class:`~brdffit.models.registry.Reading` unless the
+    user fixed or started that parameter (then it is fitted as any other); otherwise empty."""
+    reading = model.reading
+    if reading is None or reading.param in _given(settings):
+        return {}
+    return {reading.param: reading.first}
 
 
 def held_frame(model, settings: Settings, features) -> dict:
@@ -160,6 +203,4 @@ def held_frame(model, settings: Settings, features) -> dict:
     otherwise empty."""
     if FRAME not in model.names or features.axes:
         return {}
-    given = set(settings.fixed or {})
-    init = getattr(settings.init, "params", settings.init) or {}
-    return {} if FRAME in given or FRAME in init else {FRAME: 0.0}
+    return {} if FRAME in _given(settings) else {FRAME: 0.0}

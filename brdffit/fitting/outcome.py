@@ -67,6 +67,8 @@ class Prepared:
     z0: np.ndarray  # its box coordinates (free scalars)
     name: str  # the table's
     notes: tuple[str, ...] = ()  # what the preparation decided for the user, for the message
+    held: dict = dataclasses.field(default_factory=dict)  # parameters it held for the user
+    features: object = None  # what the start read off the data (start.Features)
 
 
 @dataclasses.dataclass(frozen=True)

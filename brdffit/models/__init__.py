@@ -14,7 +14,7 @@ from . import fitted_distributions  # noqa: F401  (registers low-smooth, low-mic
 from . import gltf_pbr, mitsuba_principled, mitsuba_roughconductor  # noqa: F401  (renderer-native models)
 from . import classic  # noqa: F401  (Ngan 2005, Löw 2012: Cook–Torrance, Ashikhmin–Shirley, Ward, Lafortune, ...)
 from .published import PublishedForm, published_forms, published_params, register_published
-from .registry import Model, Param, PerPass, available_models, get_model, register
+from .registry import Model, Param, PerPass, Reading, available_models, get_model, register
 
-__all__ = ["Model", "Param", "PerPass", "PublishedForm", "available_models", "get_model",
+__all__ = ["Model", "Param", "PerPass", "PublishedForm", "Reading", "available_models", "get_model",
            "published_forms", "published_params", "register", "register_published"]

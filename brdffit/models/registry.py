@@ -115,6 +115,33 @@ class PerPass:
 
 
 @dataclasses.dataclass(frozen=True)
+class Reading:
+    """A parameter that says what a material *is*, held at one of two values instead of fitted.
+
+    glTF's ``metallic`` is the example: 0 is a dielectric, 1 a metal, and the values between are
+    a blend of two materials (a mask's transition, glTF 2.0 §3.9.2), not a material. Fitted
+    freely it takes whatever blend lowers the cost: on the realistic corpus ``gltf-pbr`` left
+    fabrics and black phenolics at ``metallic`` 0.1-0.9 and metals at 0.15-0.4. The fitter
+    (:func:`brdffit.fitting.fitter.fit`) holds ``param`` at ``first``, fits, and asks
+    ``decide(params, features)`` (the first fit's parameters, the data's
+    :class:`~brdffit.fitting.start.Features`) whether the material is the other reading: a
+    non-empty reason means yes, and the fit is made again, on the same cells, with ``param``
+    held at ``other`` (and ``other_holds`` at theirs). The result's message gives the reading and its reason. A user who fixes
+    or starts ``param`` fits it as any other parameter.
+    """
+
+    param: str
+    first: float
+    other: float
+    decide: Callable[[Mapping, object], str] = dataclasses.field(repr=False, compare=False)
+    #: The reading's names, for the message: ``(first, other)``.
+    names: tuple[str, str] = ("first", "other")
+    #: Parameters that do nothing in the other reading, held there at these values (a glTF
+    #: metal's ``ior`` and ``specular``, which weigh the dielectric part only).
+    other_holds: Mapping = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass(frozen=True)
 class Model:
     """A named BRDF model: ``fn(params, wi, wo)`` with declared parameters.
 
@@ -157,6 +184,9 @@ class Model:
     the model computes from them: ``derived(params) -> {name: value}`` (NumPy in, NumPy out;
     the standard models' grazing reflectance ``f90`` from ``f0`` and ``grazing``). A derived
     name is no parameter: it cannot be fixed, started or bounded, and :meth:`param` says so.
+
+    ``reading`` (optional, a :class:`Reading`) names a parameter the fitter holds at one of two
+    values (a dielectric or a metal) instead of fitting a blend of both.
     """
 
     name: str
@@ -178,6 +208,7 @@ class Model:
     derived: Callable[[Mapping], Mapping] | None = dataclasses.field(
         default=None, repr=False, compare=False
     )
+    reading: Reading | None = dataclasses.field(default=None, repr=False, compare=False)
 
     # -- parameter bookkeeping ---------------------------------------------------------------
     @property
