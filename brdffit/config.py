@@ -194,8 +194,9 @@ class FitOptions:
 
     ``solver`` holds the solver name; ``rtol``, ``atol``, ``ftol``, ``max_steps`` its
     tolerances, ``precision`` the model evaluation's dtype; ``covariance`` how standard errors
-    are estimated; ``weighting`` how samples count against each other; ``scan`` whether the
-    start scan runs (Python only: presets do not set it).
+    are estimated; ``weighting`` how samples count against each other; ``energy`` whether the
+    directional albedo is held at most 1; ``scan`` whether the start scan runs (Python only:
+    presets do not set it).
     ``brdffit.fit(table, model, options)`` takes it as it is.
     ``init`` and ``fixed`` map parameter names to a number or an RGB triple; ``bounds`` maps
     parameter names to ``(lower, upper)``. ``sources`` lists the presets merged in.
@@ -254,6 +255,11 @@ class FitOptions:
         help="how samples count: by the share of the angles each stands for (default; undoes "
         "the MERL θh warp), once each, or by the solid angle dωi dωo each stands for (the "
         "literature's measure)")
+    energy: str | None = _option(
+        kind=str, choices=("limit", "free"), want='"limit" or "free"', default="limit",
+        flag="--energy",
+        help="directional albedo: at most 1 at every incidence (limit, default: a fit that "
+        "breaks it is solved again under the constraint) or unconstrained (free)")
     description: str = ""
     sources: tuple[str, ...] = ()
 

@@ -130,7 +130,7 @@ def test_the_energy_checks_coarse_grid_agrees_with_the_figures_grid(alpha):
 def test_converged_but_implausible_is_in_the_result_summary_json_and_dataframe(samples):
     """A Lambertian albedo held at 1 on a plastic: the fit converges, and every output says
     the material is implausible."""
-    res = brdffit.fit(str(samples), "ggx", fixed={"diffuse": 1.0})
+    res = brdffit.fit(str(samples), "ggx", fixed={"diffuse": 1.0}, energy="free")
     assert res.success and res.plausible is False
     assert {"energy", "diffuse_bound"} <= set(res.to_dataframe().attrs["implausible"])
     text = res.summary()
@@ -172,7 +172,8 @@ def test_a_result_file_from_before_the_verdict_still_reads(samples):
 
 def test_the_command_line_warns_and_keeps_exit_0(samples, capsys, tmp_path):
     out = tmp_path / "r.json"
-    code = main(["fit", str(samples), "--model", "ggx", "--fix", "diffuse=1", "--out", str(out)])
+    code = main(["fit", str(samples), "--model", "ggx", "--fix", "diffuse=1", "--energy", "free",
+                 "--out", str(out)])
     captured = capsys.readouterr()
     assert code == 0
     lines = [line for line in captured.err.splitlines() if "implausible material" in line]
@@ -192,7 +193,8 @@ def test_the_cosine_loss_on_a_polished_metal_is_loudly_implausible(cells):
     from brdffit.config import load_config
 
     preset = load_config(realistic.DATA.parent.parent / "configs" / "ngan2005.toml")
-    res = brdffit.fit(cells["ss440"], "ggx", loss=preset.loss, cutoff=preset.cutoff)
+    res = brdffit.fit(cells["ss440"], "ggx", loss=preset.loss, cutoff=preset.cutoff,
+                      energy="free")
     assert res.success and res.plausible is False
     checks = _checks(res.plausibility)
     assert {n for n, c in checks.items() if c["passed"] is False} == {
@@ -201,6 +203,9 @@ def test_the_cosine_loss_on_a_polished_metal_is_loudly_implausible(cells):
     assert "fit with the log loss" in checks["diffuse_bound"]["meaning"]
     log = brdffit.fit(cells["ss440"], "ggx", cutoff=preset.cutoff)
     assert log.success and log.plausible is True, log.plausibility
+    held = brdffit.fit(cells["ss440"], "ggx", loss=preset.loss, cutoff=preset.cutoff)
+    assert held.success and _checks(held.plausibility)["energy"]["passed"] is True
+    assert "energy held: the unconstrained optimum's directional albedo was 1.06" in held.message
 
 
 @pytest.mark.parametrize("name", sorted(LOSSES))

@@ -25,6 +25,7 @@ from .parameters import assign, free_scalars
 from .problem import Problem
 from .result import FitResult
 from .bounded import COST_NOISE, make_solver
+from .constraints import LIMIT, PENALTIES, TOLERANCE, energy_excess, limited
 from .stages import best_of, starts
 from .start import measure, start_point
 
@@ -83,6 +84,7 @@ def fit(table, model, options=None, *, progress=None, throw: bool = True, **kwar
     best, costs = best_of(prep.problem, solver, prep.selection.data, zs, settings.max_steps,
                           scan, events, first)
     prep, best, costs = reread(prep, best, costs, solver, events)
+    prep, best = energy_limited(prep, best, solver, events)
     t2 = time.perf_counter()
     return assemble(prep, best, costs, (t0, t1, t2), events, throw)
 
@@ -143,6 +145,30 @@ def reread(prep: Prepared, best, costs, solver, events: Events):
                           settings.scan, events)
     note = f"{name} held at {reading.other:g}, {reading.names[1]}: {why}"
     return dataclasses.replace(other, notes=other.notes + (note,)), best, costs
+
+
+def energy_limited(prep: Prepared, best, solver, events: Events):
+    """``(prep, best)`` under the energy constraint (:mod:`.constraints`): unchanged where the
+    fit's largest directional albedo is at most 1 (or the option ``energy`` is ``"free"``);
+    otherwise solved again from its optimum with
+    the constraint's penalty attached to the problem, the message saying so."""
+    if prep.settings.energy == "free":
+        return prep, best
+    x, _ = end_point(prep, best)
+    rho, theta = energy_excess(prep.model, x)
+    if not rho > LIMIT:
+        return prep, best
+    out = best
+    for penalty in PENALTIES:
+        problem = limited(prep.problem, float(best.cost), penalty)
+        out, _ = best_of(problem, solver, prep.selection.data, [np.asarray(out.z)],
+                         prep.settings.max_steps, False, events)
+        rho_after, _ = energy_excess(prep.model, end_point(prep, out)[0])
+        if rho_after <= LIMIT + TOLERANCE:
+            break
+    note = (f"energy held: the unconstrained optimum's directional albedo was {rho:.3g} at "
+            f"θi = {theta:.0f}°; constrained to at most 1 it is {rho_after:.4f}")
+    return dataclasses.replace(prep, problem=problem, notes=prep.notes + (note,)), out
 
 
 def prepare(table, model, settings: Settings) -> Prepared:

@@ -148,7 +148,7 @@ def compress_newton(sum_r2, jtj, second, jtr, u):
 
 
 def normal_form(sums: Callable, chunks: int = 1, prepare: Callable | None = None,
-                n_extra: int | None = None) -> Callable:
+                n_extra: int | None = None, penalty: Callable | None = None) -> Callable:
     """``fn(u, args) -> r̃`` for optimistix, whose derivative is the Gauss–Newton ``J̃``.
 
     ``sums(u, data)`` returns ``(Σ r², JᵀJ, Jᵀr, Jᵀdiag(r²)J, m)`` for a block of cells
@@ -164,17 +164,25 @@ def normal_form(sums: Callable, chunks: int = 1, prepare: Callable | None = None
     (the error figures); ``m = extra[0]``, the number of weighted residuals (for the covariance).
     ``fn`` is only meant to be differentiated once, to first order, by the solver (its ``jvp`` is
     ``J̃ δ``; ``aux`` has zero tangent).
+
+    ``penalty(u)`` (optional) returns ``(Σ r², JᵀJ, Jᵀr)`` of further residuals that are no
+    cells (the energy constraint, :mod:`brdffit.fitting.constraints`): added to the solver's
+    sums, left out of ``aux`` (the data's figures and covariance).
     """
 
     def _both(u, args):
         data, floor, *rest = args
         active = rest[0] if rest else None
         sum_r2, jtj, jtr, meat, extra = gram(sums, u, data, chunks, active, prepare, n_extra)
+        total, gjtj, gjtr = sum_r2, jtj, jtr
+        if penalty is not None:
+            total, gjtj, gjtr = (a + b.astype(a.dtype) for a, b in zip((total, gjtj, gjtr),
+                                                                        penalty(u)))
         if len(rest) > 1:  # a second-order term: Newton's quadratic model
-            rt, rmat = compress_newton(sum_r2 + 2.0 * floor, jtj, rest[1].astype(jtj.dtype), jtr,
-                                         u.astype(jtj.dtype))
+            rt, rmat = compress_newton(total + 2.0 * floor, gjtj, rest[1].astype(jtj.dtype),
+                                       gjtr, u.astype(jtj.dtype))
         else:
-            rt, rmat = compress(sum_r2 + 2.0 * floor, jtj, jtr)
+            rt, rmat = compress(total + 2.0 * floor, gjtj, gjtr)
         aux = {"jtj": jtj, "meat": meat, "sum_r2": sum_r2, "extra": extra, "m": extra[0]}
         return rt, rmat, aux
 

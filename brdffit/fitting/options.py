@@ -121,6 +121,10 @@ class Settings:
             ``"samples"``: every sample counts once; ``"solid-angle"``: by the solid angle
             ``dωi dωo`` it stands for (the MERL-fitting studies' measure). See
             :mod:`brdffit.fitting.data`.
+        energy: ``"limit"`` (default): a fit whose directional albedo exceeds 1 at some
+            incidence is solved again with the albedo held at most 1
+            (:mod:`brdffit.fitting.constraints`); ``"free"``: the optimum as it is (the verdict
+            still flags it).
     """
 
     loss: Loss
@@ -140,6 +144,7 @@ class Settings:
     precision: str
     covariance: str
     weighting: str
+    energy: str
 
     @classmethod
     def of(cls, given: Mapping) -> Settings:

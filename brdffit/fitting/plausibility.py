@@ -11,8 +11,8 @@ listed passed. The checks (:data:`CHECKS`, in this order):
 * ``energy``: the largest directional albedo of any channel over incidence ``0°–85°``
   (:func:`brdffit.models.albedo.max_albedo`) is at most 1 (+ :data:`ENERGY_SLACK` for the
   quadrature): the material reflects no more light than it receives. A Lambert term plus an
-  independent specular lobe (the standard models) can exceed it; the fit does not prevent
-  that, this check says it.
+  independent specular lobe (the standard models) can exceed it; the fit holds it by default
+  (:mod:`brdffit.fitting.constraints`), so this check fails only with ``energy="free"``.
 * ``f90``: the grazing reflectance ``F90`` is at least ``F0`` in every channel (models with
   both, as parameters or as the model's ``derived``): a reflectance that falls towards
   grazing incidence is no surface, and plain-Schlick renderers show another material.

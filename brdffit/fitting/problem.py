@@ -32,6 +32,9 @@ class Problem(eqx.Module):
         chunks: blocks the cells are split into for the Jacobian accumulation.
         x_fixed: the full flat physical vector; free entries are overwritten from ``u``.
         slo, shi: bounds of the free scalars in the transform's ``s`` coordinate.
+        energy: the energy constraint's penalty (:class:`.constraints.EnergyLimit`), attached
+            by :func:`.constraints.limited` where a fit broke the constraint; ``None``
+            otherwise.
     """
 
     model: Model = eqx.field(static=True)
@@ -43,6 +46,7 @@ class Problem(eqx.Module):
     x_fixed: jax.Array
     slo: jax.Array
     shi: jax.Array
+    energy: object = None
 
     @classmethod
     def build(cls, scalars, loss: Loss, x, dtype: str, chunks: int) -> Problem:
@@ -125,6 +129,21 @@ class Problem(eqx.Module):
         moved = self.loss.transform(rgb * (1.0 + data.value_epsilon), ci, co)
         r = jnp.where(used, data.sqrt_weight * (moved - self.loss.transform(rgb, ci, co)), 0.0)
         return floor + 0.5 * jnp.sum(jnp.square(r))
+
+    def penalty_sums(self, u):
+        """``(Σ r², JᵀJ, Jᵀr)`` of the energy penalty's residuals at ``u``
+        (:class:`.constraints.EnergyLimit`, ``J`` by forward mode), or ``None`` without one."""
+        if self.energy is None:
+            return None
+        dt = jnp.dtype(self.compute_dtype)
+        acc = jnp.promote_types(u.dtype, jnp.float32)
+
+        def res(v):
+            params = self.model.unflatten(self.full_vector(self.physical(v)).astype(dt))
+            return self.energy.residual(self.model, params, dt).astype(acc)
+
+        r, jac = res(u), jax.jacfwd(res)(u).astype(acc)
+        return jnp.sum(r * r), jac.T @ jac, jac.T @ r
 
     def _residual_of_pred(self, pred, data: FitData):
         dt = pred.dtype

@@ -139,7 +139,9 @@ class Solved(eqx.Module):
 def _solve(problem: Problem, solver, z0, data, floor, max_steps: int, active, second) -> Solved:
     """The traced solve behind :func:`solve`; ``second`` (``p × p``, zeros for none) is the
     estimate of the second-order term added to the solver's ``JᵀJ``."""
-    fn = normal_form(problem.block_sums, problem.chunks, problem.pass_tables, N_CELL_SUMS)
+    penalty = None if problem.energy is None else problem.penalty_sums
+    fn = normal_form(problem.block_sums, problem.chunks, problem.pass_tables, N_CELL_SUMS,
+                     penalty)
     sol = optx.least_squares(
         fn, with_history(solver, max_steps), z0, args=(data, floor, active, second),
         max_steps=max_steps, throw=False, has_aux=True,
