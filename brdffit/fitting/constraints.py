@@ -11,15 +11,15 @@ polished metal's peak (``--config ngan2005`` on chrome: albedo 1.06). So the fit
 it as a constraint where the unconstrained optimum breaks it:
 
 1. the fit is solved as usual; its largest albedo is computed on the plausibility check's
-   quadrature (:func:`brdffit.models.albedo.max_albedo`: 16 incidences from 0° to 85°, 64 × 32
-   half vectors each, the grid of the ``energy`` check);
+   quadrature (:func:`brdffit.models.albedo.max_albedo`: 16 incidences from 0° to 89°,
+   densest near grazing, 64 × 64 half vectors each, the grid of the ``energy`` check);
 2. only if it exceeds 1, the fit is solved again from that optimum with the penalty residuals
 
    .. math:: r_{tc} = \lambda\,\max\big(0,\ \rho_c(\theta_t) - 1\big), \qquad
              \lambda^2 = \Lambda\,(2\,\mathrm{cost} + 1)
 
    appended to the data's (an exterior penalty): their Gauss–Newton sums
-   (``Σ r²``, ``JᵀJ``, ``Jᵀr``, with ``J`` by forward mode over the 32,768 quadrature
+   (``Σ r²``, ``JᵀJ``, ``Jᵀr``, with ``J`` by forward mode over the 65,536 quadrature
    directions) are added to the cells' in every pass
    (:func:`brdffit.fitting.normal_form.normal_form`). Where the constraint is active its
    residual balances the data's gradient, so the optimum exceeds 1 by about

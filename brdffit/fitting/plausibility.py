@@ -8,7 +8,7 @@ real surfaces do, and returns a record (:func:`verdict_record`) that
 A check a model has no parameters for is left out; ``plausible`` is true when every check
 listed passed. The checks (:data:`CHECKS`, in this order):
 
-* ``energy``: the largest directional albedo of any channel over incidence ``0°–85°``
+* ``energy``: the largest directional albedo of any channel over incidence ``0°–89°``
   (:func:`brdffit.models.albedo.max_albedo`) is at most 1 (+ :data:`ENERGY_SLACK` for the
   quadrature): the material reflects no more light than it receives. A Lambert term plus an
   independent specular lobe (the standard models) can exceed it; the fit holds it by default
