@@ -57,6 +57,9 @@ WHITE = {
     "mitsuba-roughconductor-beckmann": dict(alpha=0.3, eta=0.02, k=12.0),
     "mitsuba-roughconductor-tint": dict(alpha=0.3, specular_reflectance=1.0),
     "gltf-pbr": dict(base_color=1.0, metallic=1.0, roughness=0.5),
+    # the sheen layer over a white metal: the base scaled by 1 - E(θ) of the sheen it adds
+    "gltf-pbr-sheen": dict(base_color=1.0, metallic=1.0, roughness=0.5, sheen_color=1.0,
+                           sheen_roughness=0.5),
     # Fitted-distribution models (brdffit/models/fitted_distributions.py). Löw's and Bagher's
     # scales are unnormalised (no energy promise): settings whose albedo lies in (0.3, 1].
     # sgd at k_s = πK/4 with F = 1 and G1 = 1 (bbm's Cook normalisation π, not 4).

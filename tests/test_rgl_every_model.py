@@ -26,13 +26,17 @@ def test_every_model_fits_a_file_written_from_its_own_defaults(name, tmp_path,
     converges and reproduces the file's values. These are exact fits to float32 tables,
     judged against the cost the tables' own rounding makes (``SampleSet.value_epsilon``),
     with any scalar the data do not identify left out of the optimality test (a default
-    lobe with ``α_x = α_y`` does not identify its ``frame_angle``)."""
+    lobe with ``α_x = α_y`` does not identify its ``frame_angle``). The energy constraint is
+    off (``energy="free"``): some models' defaults reflect more than they receive near
+    grazing incidence (``gltf-pbr-clearcoat``: 1.01 at 88°), and the constrained fit then
+    rightly leaves them (``tests/test_energy_limit.py`` tests that path)."""
     import jax
 
     with jax.enable_x64(True):
         path = _write(tmp_path / f"{name}.bsdf", name, {}, resolution=8, n_theta_i=4,
                       n_phi_i=5, vndf_shape=(8, 8))
-    options = {"multistart": MULTISTART[name]} if name in MULTISTART else {}
+    options = {"energy": "free", **({"multistart": MULTISTART[name]} if name in MULTISTART
+                                     else {})}
     res = brdffit.fit(path, name, throw=False, **options)
     assert res.success, res.summary()
     assert res.metrics["rmse_log"] < 1e-6, res.summary()

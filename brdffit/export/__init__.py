@@ -31,7 +31,8 @@ brdffit model / parameter                target
   ``eta``, ``k`` (RGB)                   ``eta``, ``k`` as ``rgb``
   ``specular_reflectance`` (``-tint``)   ``specular_reflectance`` as ``rgb``; ``eta = 0``,
                                          ``k = 1`` (Mitsuba's defaults: ``F = 1``)
-``gltf-pbr``, ``gltf-pbr-clearcoat``     glTF 2.0 ``materials[0].pbrMetallicRoughness``
+``gltf-pbr``, ``gltf-pbr-clearcoat``,    glTF 2.0 ``materials[0].pbrMetallicRoughness``
+``gltf-pbr-sheen``
   ``base_color`` (RGB, linear)           ``baseColorFactor`` ``[r, g, b, 1]``
   ``metallic``                           ``metallicFactor``
   ``roughness``                          ``roughnessFactor`` (``α = roughness²``)
@@ -41,6 +42,9 @@ brdffit model / parameter                target
   ``clearcoat``                          ``KHR_materials_clearcoat`` ``clearcoatFactor``
   ``clearcoat_roughness``                ``KHR_materials_clearcoat``
                                          ``clearcoatRoughnessFactor``
+  ``sheen_color`` (RGB, linear; when     ``KHR_materials_sheen`` ``sheenColorFactor``
+  above 0)
+  ``sheen_roughness``                    ``KHR_materials_sheen`` ``sheenRoughnessFactor``
 =======================================  ======================================================
 
 Targets: the registry :data:`TARGETS` (name -> :class:`Target`), the one list the command line
@@ -110,7 +114,9 @@ class Target:
             ``params`` of a native model; ``note(comment=...)`` gives the provenance line;
             ``fragment`` asks for the bare element where the format has one.
         others: more native models a message suggests (``"for metals also ..."``).
-        coated: the native model an approximation also tries for a source with a clear coat.
+        layers: ``(source parameter, native model)`` pairs: an approximation also fits that
+            native model where the source model's parameter of that name is above 0 (a coat,
+            a sheen), and keeps the lowest cost.
         evaluate: ``evaluate(exported, wi, wo) -> (f_r, renderer name)``: the written material
             as the target renderer computes it (:mod:`brdffit.export.faithful`); ``None``: the
             export's error is not measured.
@@ -123,7 +129,7 @@ class Target:
     is_native: Callable[[str], bool]
     payload: Callable
     others: str = ""
-    coated: str = ""
+    layers: tuple[tuple[str, str], ...] = ()
     evaluate: Callable | None = None
 
 
@@ -165,7 +171,7 @@ def _in_gltf(exported, wi, wo):
     return document_brdf(exported.payload, wi, wo), "glTF reference BRDF"
 
 
-_GLTF_MODELS = ("gltf-pbr", "gltf-pbr-clearcoat")
+_GLTF_MODELS = ("gltf-pbr", "gltf-pbr-clearcoat", "gltf-pbr-sheen")
 
 
 _MITSUBA_METALS = "for metals also mitsuba-roughconductor"
@@ -179,8 +185,10 @@ TARGETS: dict[str, Target] = {t.name: t for t in (
            "mitsuba-principled", _is_mitsuba, _mitsuba_dict, _MITSUBA_METALS,
            evaluate=_in_mitsuba),
     Target("gltf", "a glTF 2.0 sphere with the material (.glb: binary glTF)", "glTF",
-           "gltf-pbr", lambda name: name in _GLTF_MODELS, _gltf, "with a coat gltf-pbr-clearcoat",
-           coated="gltf-pbr-clearcoat", evaluate=_in_gltf),
+           "gltf-pbr", lambda name: name in _GLTF_MODELS, _gltf,
+           "with a coat gltf-pbr-clearcoat, for fabrics gltf-pbr-sheen",
+           layers=(("clearcoat", "gltf-pbr-clearcoat"), ("sheen", "gltf-pbr-sheen")),
+           evaluate=_in_gltf),
 )}
 
 
@@ -264,13 +272,13 @@ def _no_counterpart(name, target: Target):
 
 
 def _approximate(model, params, target: Target, data, approx_options):
-    """The native model fitted to ``model`` (and, for a coated source, the coated native
-    model too; the lower cost wins), sampled at the cells of ``data`` where there are data."""
+    """The native model fitted to ``model`` (and, for a source with a layer the target has a
+    model for, a coat or a sheen, that model too: ``Target.layers``; the lowest cost wins),
+    sampled at the cells of ``data`` where there are data."""
     from .approximate import approximate as fit_native
 
-    natives = [target.native]
-    if target.coated and float(np.max(params.get("clearcoat", 0.0))) > 0.0:
-        natives.append(target.coated)
+    natives = [target.native] + [native for name, native in target.layers
+                                 if float(np.max(params.get(name, 0.0))) > 0.0]
     if data is not None and "pairs" not in approx_options:
         from .faithful import cells
 
@@ -321,8 +329,8 @@ def export(result, to: str, *, approximate: bool = False, data=None, error: bool
     ``to`` is a name in :data:`TARGETS`. Raises :class:`NoExactCounterpart` when the model is
     not the target's BSDF and ``approximate`` is false; with ``approximate=True`` it fits the
     target's ``native`` model to the fitted model (options passed to
-    :func:`~brdffit.export.approximate.approximate`; a source with a clear coat also tries the
-    target's ``coated`` model), sampled at the measured cells where the data are at hand (seed
+    :func:`~brdffit.export.approximate.approximate`; a source with a clear coat or a sheen also
+    tries the target's model for that layer, ``Target.layers``), sampled at the measured cells where the data are at hand (seed
     1: other cells than the error's) and at MERL-warped pairs otherwise. Raises :class:`NotExportable` for a parameter that is not finite.
 
     With ``error`` (the default) the export's error is measured in the target renderer

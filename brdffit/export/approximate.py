@@ -12,10 +12,11 @@ The target model is fitted to the source model, not mapped parameter by paramete
 (say Disney's ``specular`` onto glTF's core material) has nowhere to put what the target cannot
 hold, and lands on whatever the formulas share (a shiny plastic mapped to the core glTF model
 lost its colour to ``metallic``); a fit finds the target material closest to what the source
-renders, and says how close. Noise-free data make the fit deterministic; three starts (a dielectric and a metal reading of
-the data-driven features, and the fitter's own data-driven start with its scan) guard against
-the metallic/dielectric ambiguity and the principled model's local minima, and the lowest cost
-wins.
+renders, and says how close. Noise-free data make the fit deterministic; three starts (a
+dielectric and a metal reading of the data-driven features, and the fitter's own data-driven
+start with its scan) guard against the metallic/dielectric ambiguity and the principled model's
+local minima, and the lowest cost wins. A glTF target reads ``metallic`` as 0 or 1 in its own
+fit (``Model.reading``), from the fitter's start alone.
 """
 
 from __future__ import annotations
@@ -50,9 +51,13 @@ def sample_pairs(n: int = 60000, *, cutoff: float = 80.0, seed: int = 0):
 
 def _starts(native, features) -> list[dict]:
     """Two of the starting points for ``native`` from data-driven features: the dielectric and the
-    metal reading (:func:`brdffit.models.starts.metallic_roughness`)."""
+    metal reading (:func:`brdffit.models.starts.metallic_roughness`); none for a model with a
+    :class:`~brdffit.models.registry.Reading` (the glTF models), whose fit decides between the
+    two readings itself and would fit a blend from a start that names ``metallic``."""
     from ..models.starts import gltf_pbr, metallic_roughness
 
+    if native.reading is not None:
+        return []
     starts = []
     for metal in (False, True):
         reading = (gltf_pbr(features, metal) if native.name.startswith("gltf-pbr")

@@ -79,6 +79,11 @@ def _material(params, name: str) -> dict:
     if specular != 1.0:
         ext["KHR_materials_specular"] = {"specularFactor": specular,
                                          "specularColorFactor": [1.0, 1.0, 1.0]}
+    sheen = [float(x) for x in np.broadcast_to(np.asarray(params.get("sheen_color", 0.0), float),
+                                                (3,))]
+    if max(sheen) > 0.0:
+        ext["KHR_materials_sheen"] = {"sheenColorFactor": sheen,
+                                      "sheenRoughnessFactor": float(params["sheen_roughness"])}
     if float(params.get("clearcoat", 0.0)) > 0.0:
         ext["KHR_materials_clearcoat"] = {
             "clearcoatFactor": float(params["clearcoat"]),
@@ -91,7 +96,7 @@ def _material(params, name: str) -> dict:
 def gltf_document(params, *, name: str = "brdffit-material", generator: str = "brdffit",
                   uri: bool = True) -> dict:
     """The glTF JSON (a dict; ``json.dumps`` it) for complete ``gltf-pbr`` (or
-    ``gltf-pbr-clearcoat``) parameters, the sphere's buffer as a ``data:`` URI (``uri=False``:
+    ``gltf-pbr-clearcoat``, ``gltf-pbr-sheen``) parameters, the sphere's buffer as a ``data:`` URI (``uri=False``:
     no URI, the buffer is a GLB's binary chunk, :func:`glb_bytes`)."""
     material = _material(params, name)
     pos, idx = sphere()
@@ -149,8 +154,9 @@ def glb_bytes(document: dict) -> bytes:
 
 def params_from_gltf(document: dict, index: int = 0) -> dict:
     """Inverse of :func:`gltf_document`: the ``gltf-pbr`` parameters of material ``index``
-    (with ``clearcoat`` and ``clearcoat_roughness`` where the coat extension is present), with
-    the specifications' defaults for absent fields."""
+    (with ``clearcoat`` and ``clearcoat_roughness`` where the coat extension is present,
+    ``sheen_color`` and ``sheen_roughness`` where the sheen's is), with the specifications'
+    defaults for absent fields."""
     material = document["materials"][index]
     pbr = material.get("pbrMetallicRoughness", {})
     ext = material.get("extensions", {})
@@ -161,6 +167,10 @@ def params_from_gltf(document: dict, index: int = 0) -> dict:
         "ior": float(ext.get("KHR_materials_ior", {}).get("ior", CORE_IOR)),
         "specular": float(ext.get("KHR_materials_specular", {}).get("specularFactor", 1.0)),
     }
+    if "KHR_materials_sheen" in ext:
+        sheen = ext["KHR_materials_sheen"]
+        out["sheen_color"] = np.asarray(sheen.get("sheenColorFactor", [0.0, 0.0, 0.0]), float)
+        out["sheen_roughness"] = float(sheen.get("sheenRoughnessFactor", 0.0))
     if "KHR_materials_clearcoat" in ext:
         coat = ext["KHR_materials_clearcoat"]
         out["clearcoat"] = float(coat.get("clearcoatFactor", 0.0))

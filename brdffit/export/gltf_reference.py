@@ -17,13 +17,22 @@ the light (``wi``), ``N = z``, ``H = normalize(L + V)``:
   ``dielectric_brdf = (1 − specularFactor · max(fr)) diffuse_brdf + specularFactor · fr ·
   specular_brdf`` (``fresnel_mix`` with ``weight`` and ``f0_color``; without the extensions
   ``ior = 1.5``, both factors 1: Appendix B's ``fresnel_mix``).
+* **KHR_materials_sheen** ("Implementation Notes"): ``f = f_sheen + f · sheenAlbedoScaling``
+  with ``f_sheen = sheenColor D_S / ((1 + Λ(N·V) + Λ(N·L)) 4 |N·L| |N·V|)``, the Charlie NDF
+  ``D_S = (2 + 1/α)(1 − (N·H)²)^{1/(2α)} / 2π`` at ``α = sheenRoughnessFactor²``, Λ the
+  extension's ``lambdaSheen`` (the fitted ``l(x)`` of Estevez & Kulla 2017), and
+  ``sheenAlbedoScaling = min(1 − max₃(sheenColor) E(N·V), 1 − max₃(sheenColor) E(N·L))``,
+  clamped at 0 (as Filament does: the lobe's ``E`` exceeds 1 near grazing at low roughness).
+  The extension leaves ``E``, the sheen lobe's directional albedo, to a table; here it is that
+  integral itself, computed for the file's roughness (:func:`sheen_albedo_curve`: 257 values of
+  ``cos θ`` from 10⁻⁴ to 1, spaced evenly in ``√cos θ``, 128 × 128 nodes over ``ωo``, linear
+  interpolation between them).
 * **KHR_materials_clearcoat** ("Implementation"): ``coated = mix(f, clearcoat_brdf,
   clearcoatFactor (0.04 + 0.96 (1 − |N·V|)⁵))`` with ``clearcoat_brdf`` the specular BRDF at
-  ``α = clearcoatRoughnessFactor²`` (the geometric normal: brdffit writes no coat normal map).
+  ``α = clearcoatRoughnessFactor²`` (the geometric normal: brdffit writes no coat normal map),
+  on top of the sheen.
 
-``KHR_materials_sheen`` is not transcribed (its albedo scaling needs the sheen lobe's
-directional albedo, a table the extension leaves to the implementation): a material using it,
-or any other extension that changes reflection, is refused with ``ValueError`` rather than
+Any other extension that changes reflection is refused with ``ValueError`` rather than
 evaluated without it. brdffit writes none of them.
 """
 
@@ -32,7 +41,55 @@ from __future__ import annotations
 import numpy as np
 
 #: Extensions this module evaluates; others listed in a material are refused.
-EVALUATED = {"KHR_materials_ior", "KHR_materials_specular", "KHR_materials_clearcoat"}
+EVALUATED = {"KHR_materials_ior", "KHR_materials_specular", "KHR_materials_clearcoat",
+             "KHR_materials_sheen"}
+
+#: ``KHR_materials_sheen``'s ``l(x)`` coefficients: ``mix(at α = 1, at α = 0, (1 − α)²)``.
+_SHEEN_L = ((21.5473, 25.3245), (3.82987, 3.32435), (0.19823, 0.16801), (-1.97760, -1.27393),
+            (-4.32054, -4.85967))
+
+
+def _sheen_l(x, alpha):
+    t = (1.0 - alpha) ** 2
+    a, b, c, d, e = (lo * (1 - t) + hi * t for lo, hi in _SHEEN_L)
+    return a / (1.0 + b * np.power(x, c)) + d * x + e
+
+
+def _lambda_sheen(cos_theta, alpha):
+    c = np.abs(cos_theta)
+    return np.where(c < 0.5, np.exp(_sheen_l(c, alpha)),
+                    np.exp(2.0 * _sheen_l(0.5, alpha) - _sheen_l(1.0 - c, alpha)))
+
+
+def _sheen_brdf(alpha, L, V, H):
+    """The sheen lobe with ``sheenColor = 1``, ``(n,)``."""
+    NL, NV, NH = L[..., 2], V[..., 2], H[..., 2]
+    sin2h = np.maximum(1.0 - NH**2, 0.0)
+    D = (2.0 + 1.0 / alpha) * sin2h ** (0.5 / alpha) / (2 * np.pi) * (NH > 0)
+    den = (1.0 + _lambda_sheen(NV, alpha) + _lambda_sheen(NL, alpha)) * 4 * np.abs(NL * NV)
+    return np.where((NL > 0) & (NV > 0), D / np.where(den > 0, den, np.inf), 0.0)
+
+
+def sheen_albedo_curve(roughness: float, n_mu: int = 257, n_quad: int = 128):
+    """``(μ, E(μ))``: the directional albedo of the sheen lobe (``sheenColor = 1``) at ``n_mu``
+    values of ``cos θ`` from 10⁻⁴ to 1 (evenly spaced in ``√cos θ``), by Gauss–Legendre nodes in ``cos θo`` and midpoint nodes
+    in ``φo`` (``n_quad`` each)."""
+    alpha = roughness**2
+    x, w = np.polynomial.legendre.leggauss(n_quad)
+    co, wc = (x + 1) / 2, w / 2
+    phi = (np.arange(n_quad) + 0.5) * 2 * np.pi / n_quad
+    so = np.sqrt(1 - co**2)
+    V = np.stack(np.broadcast_arrays(so[:, None] * np.cos(phi), so[:, None] * np.sin(phi),
+                                     co[:, None]), -1).reshape(-1, 3)
+    weight = (wc * co)[:, None].repeat(n_quad, 1).ravel() * (2 * np.pi / n_quad)
+    mu = np.linspace(1e-2, 1.0, n_mu) ** 2  # denser towards grazing, where E changes fastest
+    E = np.empty(n_mu)
+    for k, m in enumerate(mu):
+        L = np.array([np.sqrt(1 - m * m), 0.0, m])
+        H = L + V
+        H /= np.linalg.norm(H, axis=-1, keepdims=True)
+        E[k] = np.sum(weight * _sheen_brdf(alpha, np.broadcast_to(L, V.shape), V, H))
+    return mu, E
 
 
 def _specular_brdf(alpha, L, V, H):
@@ -73,6 +130,17 @@ def material_brdf(material: dict, wi, wo) -> np.ndarray:
                        + weight * fr * specular_brdf)
     metal_brdf = (C + (1 - C) * w) * specular_brdf
     f = (1 - metallic) * dielectric_brdf + metallic * metal_brdf
+    sheen = ext.get("KHR_materials_sheen")
+    if sheen is not None:
+        color = np.asarray(sheen.get("sheenColorFactor", [0.0, 0.0, 0.0]), float)
+        roughness = float(sheen.get("sheenRoughnessFactor", 0.0))
+        if color.max() > 0.0:
+            alpha = roughness**2
+            mu, E = sheen_albedo_curve(roughness)
+            scaling = np.minimum(1 - color.max() * np.interp(np.abs(V[:, 2]), mu, E),
+                                 1 - color.max() * np.interp(np.abs(L[:, 2]), mu, E))
+            f = (color * _sheen_brdf(alpha, L, V, H)[:, None]
+                 + f * np.maximum(scaling, 0.0)[:, None])
     coat = ext.get("KHR_materials_clearcoat")
     if coat is not None:
         cc = float(coat.get("clearcoatFactor", 0.0))

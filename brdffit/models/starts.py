@@ -76,6 +76,12 @@ def gltf_pbr(features, metal: bool | None = None) -> dict:
             "ior": 1.5 if metal else ior, "specular": 1.0}
 
 
+def gltf_pbr_sheen(features) -> dict:
+    """The start of ``gltf-pbr-sheen``: :func:`gltf_pbr` and a faint grey sheen (0.1; at 0 its
+    roughness would do nothing) of medium roughness."""
+    return {**gltf_pbr(features), "sheen_color": 0.1, "sheen_roughness": 0.5}
+
+
 def specular_level(features) -> float:
     """Disney's and Mitsuba's ``specular``: the dielectric ``F0 = 0.08 specular``."""
     return float(np.clip(np.mean(features.f0) / 0.08, 0.05, 0.95))

@@ -35,6 +35,39 @@ def _sheen_D(alpha, wm):
     return chi_plus(wm[..., 2]) * (2.0 + 1.0 / alpha) * pw / (2.0 * jnp.pi)
 
 
+def charlie_D(alpha, wm):
+    """The Imageworks ("Charlie") sheen NDF of :class:`ImageworksSheen` as a function:
+    ``(2 + 1/α) sin^{1/α}θm / 2π`` (Estevez & Kulla 2017; RTR eq. 9.75)."""
+    return _sheen_D(alpha, wm)
+
+
+#: The coefficients of Estevez & Kulla's fit of the sheen's ``Λ`` (their §3, as
+#: ``KHR_materials_sheen`` transcribes them): ``(at α = 1, at α = 0)`` for ``a, b, c, d, e``,
+#: mixed by ``(1 − α)²``.
+CHARLIE_FIT = ((21.5473, 25.3245), (3.82987, 3.32435), (0.19823, 0.16801),
+               (-1.97760, -1.27393), (-4.32054, -4.85967))
+
+
+def _charlie_l(x, alpha):
+    t = (1.0 - alpha) ** 2
+    a, b, c, d, e = (lo + (hi - lo) * t for lo, hi in CHARLIE_FIT)
+    xs = jnp.maximum(x, 1e-12)  # x^c: finite derivatives at 0
+    return a / (1.0 + b * jnp.exp(c * jnp.log(xs))) + d * x + e
+
+
+def charlie_lambda(cos_theta, alpha):
+    r"""Estevez & Kulla's fitted Smith ``Λ`` of the Charlie sheen NDF (their eqs. 3-4, the
+    "Charlie" visibility of ``KHR_materials_sheen``): ``exp(l(|cos θ|))`` for ``|cos θ| < 1/2``,
+    ``exp(2 l(1/2) − l(1 − |cos θ|))`` above, with
+    ``l(x) = a/(1 + b x^c) + d x + e`` and the coefficients of :data:`CHARLIE_FIT`. The fit,
+    not the exact ``Λ`` (:class:`ImageworksSheen` tabulates that); a renderer following the
+    extension uses this one."""
+    c = jnp.abs(cos_theta)
+    low = jnp.exp(_charlie_l(c, alpha))
+    high = jnp.exp(2.0 * _charlie_l(0.5, alpha) - _charlie_l(1.0 - c, alpha))
+    return jnp.where(c < 0.5, low, high)
+
+
 def _table(D, alpha):
     return ProjectedAreaTable.build(D, 1.0, n_theta=N_THETA, n_quad=N_QUAD, dtype=alpha.dtype)
 
