@@ -6,7 +6,7 @@ README) ``--cells`` MERL cells are drawn (seeded; lower cell corners above the h
 cells' ``θh`` weights, as ``tests/realistic.py`` draws them) and evaluated by the corpus's
 ``render.brdf``. On those cells:
 
-* **native** exports: ``gltf-pbr`` → ``gltf``, ``mitsuba-principled`` and
+* **native** exports: ``gltf-pbr`` and ``gltf-pbr-sheen`` → ``gltf``, ``mitsuba-principled`` and
   ``mitsuba-roughconductor`` → ``mitsuba-xml`` (the ``mitsuba-dict`` target loads the same
   BSDF);
 * **approximate** exports: ``ggx`` and ``disney`` → ``gltf`` and ``mitsuba-xml``
@@ -38,6 +38,7 @@ REALISTIC = HERE.parent.parent / "shared" / "realistic"
 #: (source model, target, approximate?)
 CASES = (
     ("gltf-pbr", "gltf", False),
+    ("gltf-pbr-sheen", "gltf", False),
     ("mitsuba-principled", "mitsuba-xml", False),
     ("mitsuba-roughconductor", "mitsuba-xml", False),
     ("ggx", "gltf", True),
