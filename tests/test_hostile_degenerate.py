@@ -122,7 +122,8 @@ def test_an_exact_synthetic_table_is_a_clean_success(cells):
     truth = {"diffuse": [0.2, 0.3, 0.4], "f0": [0.9, 0.6, 0.3], "alpha": 0.2, "grazing": 0.8}
     p = model.unflatten(jnp.asarray(model.flatten(truth)))
     rgb = np.asarray(model.fn(p, jnp.asarray(cells.wi), jnp.asarray(cells.wo)))
-    res = brdffit.fit(_table(cells, rgb, "exact"), "ggx", throw=False)
+    # energy="free": this truth reflects 1.09 at 89°; the constraint would leave it
+    res = brdffit.fit(_table(cells, rgb, "exact"), "ggx", throw=False, energy="free")
     assert res.success and res.not_identified == [] and res.at_bound == {}
     _assert_no_nan_values(res)
     assert all(math.isfinite(s) for v in res.stderr.values() for s in np.atleast_1d(v))
