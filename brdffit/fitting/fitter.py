@@ -156,19 +156,20 @@ def energy_limited(prep: Prepared, best, solver, events: Events):
         return prep, best
     x, _ = end_point(prep, best)
     rho, theta = energy_excess(prep.model, x)
-    if not rho > LIMIT:
-        return prep, best
+    if not rho > LIMIT:  # the verdict's energy check reads this albedo instead of its own
+        return dataclasses.replace(prep, albedo=(rho, theta)), best
     out = best
     for penalty in PENALTIES:
         problem = limited(prep.problem, float(best.cost), penalty)
         out, _ = best_of(problem, solver, prep.selection.data, [np.asarray(out.z)],
                          prep.settings.max_steps, False, events)
-        rho_after, _ = energy_excess(prep.model, end_point(prep, out)[0])
-        if rho_after <= LIMIT + TOLERANCE:
+        after = energy_excess(prep.model, end_point(prep, out)[0])
+        if after[0] <= LIMIT + TOLERANCE:
             break
     note = (f"energy held: the unconstrained optimum's directional albedo was {rho:.3g} at "
-            f"θi = {theta:.0f}°; constrained to at most 1 it is {rho_after:.4f}")
-    return dataclasses.replace(prep, problem=problem, notes=prep.notes + (note,)), out
+            f"θi = {theta:.0f}°; constrained to at most 1 it is {after[0]:.4f}")
+    return dataclasses.replace(prep, problem=problem, notes=prep.notes + (note,),
+                               albedo=after), out
 
 
 def prepare(table, model, settings: Settings) -> Prepared:

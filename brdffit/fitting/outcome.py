@@ -69,6 +69,7 @@ class Prepared:
     notes: tuple[str, ...] = ()  # what the preparation decided for the user, for the message
     held: dict = dataclasses.field(default_factory=dict)  # parameters it held for the user
     features: object = None  # what the start read off the data (start.Features)
+    albedo: tuple | None = None  # (ρ_max, θi) at the end point, where the fit computed it
 
 
 @dataclasses.dataclass(frozen=True)
@@ -295,7 +296,7 @@ def assemble(prep: Prepared, best: Solved, costs, times, events, throw: bool) ->
         total_steps=int(events.solver_steps),
     )
     result.plausibility = verdict_record(assess(model, result.params, result.metrics,
-                                                result.loss))
+                                                result.loss, prep.albedo))
     if throw and not v.success:
         failed = "did not converge" if v.status not in DATA_VERDICTS else f"is {v.status}"
         raise FitError(f"{model.name} fit of {prep.name or 'table'} {failed}: {v.message} "

@@ -90,12 +90,13 @@ def _rgb(value) -> np.ndarray:
     return np.broadcast_to(np.asarray(value, float), (3,))
 
 
-def energy(model, params) -> dict:
+def energy(model, params, albedo=None) -> dict:
     """The ``energy`` check (module docstring); not assessed (``passed`` None) where the
-    parameters are not finite."""
+    parameters are not finite. ``albedo``: ``(ρ_max, θi)`` of :func:`max_albedo` at these
+    parameters where the caller has it already (the fit's energy constraint)."""
     if not all(np.all(np.isfinite(np.asarray(v, float))) for v in params.values()):
         return _check("energy", None, math.nan, 1.0, "not assessed: the parameters are not finite")
-    rho, theta = max_albedo(model, params)
+    rho, theta = max_albedo(model, params) if albedo is None else albedo
     ok = rho <= 1.0 + ENERGY_SLACK
     meaning = (f"largest directional albedo {rho:.3g} (θi = {theta:.0f}°, over 0–"
                f"{CHECK_ANGLES[-1]:.0f}°): " + (
@@ -211,17 +212,17 @@ def fit_error(metrics) -> dict | None:
     return _check("error", ok, rel, REL_ERROR_LIMIT, meaning)
 
 
-def assess(model, params, metrics, loss: str = "") -> list[dict]:
+def assess(model, params, metrics, loss: str = "", albedo=None) -> list[dict]:
     """Every check that applies to ``model`` (a registered name or a ``Model``) with the
     fitted ``params`` (name → value), ``metrics`` (the result's) and ``loss`` (its label, for
-    the meanings), in :data:`CHECKS` order."""
+    the meanings), in :data:`CHECKS` order; ``albedo`` as for :func:`energy`."""
     model = get_model(model)
     params = {k: np.asarray(v, float) for k, v in params.items()}
     try:
         derived = model.derived_values(params)
     except (ValueError, TypeError, FloatingPointError):
         derived = {}
-    found = [energy(model, params), grazing(params, derived), white_diffuse(params, loss),
+    found = [energy(model, params, albedo), grazing(params, derived), white_diffuse(params, loss),
              black_metal(params), metal_over_diffuse(params), fit_error(metrics)]
     return [c for c in found if c is not None]
 

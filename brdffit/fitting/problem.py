@@ -142,7 +142,11 @@ class Problem(eqx.Module):
             params = self.model.unflatten(self.full_vector(self.physical(v)).astype(dt))
             return self.energy.residual(self.model, params, dt).astype(acc)
 
-        r, jac = res(u), jax.jacfwd(res)(u).astype(acc)
+        def res_twice(v):  # the residual, and again as the primal jacfwd hands back
+            r = res(v)
+            return r, r
+
+        jac, r = jax.jacfwd(res_twice, has_aux=True)(u)
         return jnp.sum(r * r), jac.T @ jac, jac.T @ r
 
     def _residual_of_pred(self, pred, data: FitData):

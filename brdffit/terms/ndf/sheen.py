@@ -28,17 +28,13 @@ def _velvet_D(alpha, k_amp, wm):
     return chi_plus(wm[..., 2]) * (1.0 + k_amp * bump) / (jnp.pi * (1.0 + k_amp * alpha**2))
 
 
-def _sheen_D(alpha, wm):
+def charlie_D(alpha, wm):
+    """The Imageworks ("Charlie") sheen NDF of :class:`ImageworksSheen` as a function:
+    ``(2 + 1/α) sin^{1/α}θm / 2π`` (Estevez & Kulla 2017; RTR eq. 9.75)."""
     s2 = jnp.maximum(1.0 - wm[..., 2] ** 2, 0.0)
     ok = s2 > 1e-30
     pw = jnp.where(ok, jnp.exp(jnp.log(jnp.where(ok, s2, 1.0)) / (2.0 * alpha)), 0.0)
     return chi_plus(wm[..., 2]) * (2.0 + 1.0 / alpha) * pw / (2.0 * jnp.pi)
-
-
-def charlie_D(alpha, wm):
-    """The Imageworks ("Charlie") sheen NDF of :class:`ImageworksSheen` as a function:
-    ``(2 + 1/α) sin^{1/α}θm / 2π`` (Estevez & Kulla 2017; RTR eq. 9.75)."""
-    return _sheen_D(alpha, wm)
 
 
 #: The coefficients of Estevez & Kulla's fit of the sheen's ``Λ`` (their §3, as
@@ -74,7 +70,7 @@ def _table(D, alpha):
 
 # Compiled once per dtype: eager model calls would otherwise dispatch the quadrature op by op.
 _velvet_table = jax.jit(lambda a, k: _table(lambda m: _velvet_D(a, k, m), a))
-_sheen_table = jax.jit(lambda a: _table(lambda m: _sheen_D(a, m), a))
+_sheen_table = jax.jit(lambda a: _table(lambda m: charlie_D(a, m), a))
 
 
 class GeneralizedVelvet(NDF):
@@ -126,7 +122,7 @@ class ImageworksSheen(NDF):
         self.table = _sheen_table(self.alpha)
 
     def D(self, wm):
-        return _sheen_D(self.alpha, wm)
+        return charlie_D(self.alpha, wm)
 
     def Lambda(self, w):
         return self.table.Lambda(w)
