@@ -38,6 +38,8 @@ evaluated without it. brdffit writes none of them.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 #: Extensions this module evaluates; others listed in a material are refused.
@@ -70,6 +72,7 @@ def _sheen_brdf(alpha, L, V, H):
     return np.where((NL > 0) & (NV > 0), D / np.where(den > 0, den, np.inf), 0.0)
 
 
+@functools.lru_cache(maxsize=16)
 def sheen_albedo_curve(roughness: float, n_mu: int = 257, n_quad: int = 128):
     """``(μ, E(μ))``: the directional albedo of the sheen lobe (``sheenColor = 1``) at ``n_mu``
     values of ``cos θ`` from 10⁻⁴ to 1 (evenly spaced in ``√cos θ``), by Gauss–Legendre nodes in ``cos θo`` and midpoint nodes
@@ -89,6 +92,7 @@ def sheen_albedo_curve(roughness: float, n_mu: int = 257, n_quad: int = 128):
         H = L + V
         H /= np.linalg.norm(H, axis=-1, keepdims=True)
         E[k] = np.sum(weight * _sheen_brdf(alpha, np.broadcast_to(L, V.shape), V, H))
+    mu.flags.writeable = E.flags.writeable = False  # cached: one integral per roughness
     return mu, E
 
 
